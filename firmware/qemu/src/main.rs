@@ -1,0 +1,95 @@
+//! QEMU test binary (mps2-an386, Cortex-M4F): runs the firmware's numeric code on
+//! golden inputs and prints every result over semihosting for `host-tests` to
+//! compare bit for bit with the host. Exits through semihosting: success after
+//! `@pass`, failure on panic or HardFault.
+#![no_std]
+#![no_main]
+
+use core::fmt::Write;
+use cortex_m_rt::{ExceptionFrame, entry, exception};
+use cortex_m_semihosting::{debug, hio};
+use firmware::golden::{self, MathFn};
+
+/// Line-buffered semihosting writer: one host call per ~1 KiB, not per line.
+struct Report {
+    buf: heapless::String<1024>,
+    host: hio::HostStream,
+}
+
+impl Report {
+    fn new() -> Self {
+        let host = match hio::hstdout() {
+            Ok(h) => h,
+            Err(()) => fail(),
+        };
+        Report { buf: heapless::String::new(), host }
+    }
+
+    fn line(&mut self, args: core::fmt::Arguments) {
+        if self.buf.len() > 900 {
+            self.flush();
+        }
+        if self.buf.write_fmt(args).is_err() || self.buf.push('\n').is_err() {
+            fail();
+        }
+    }
+
+    fn flush(&mut self) {
+        if self.host.write_all(self.buf.as_bytes()).is_err() {
+            fail();
+        }
+        self.buf.clear();
+    }
+}
+
+fn fail() -> ! {
+    debug::exit(debug::EXIT_FAILURE);
+    loop {
+        cortex_m::asm::bkpt();
+    }
+}
+
+#[entry]
+fn main() -> ! {
+    let mut out = Report::new();
+
+    out.line(format_args!("@suite math {}", golden::MATH_POINTS));
+    for f in MathFn::ALL {
+        for i in 0..golden::MATH_POINTS {
+            let x = f.input(i);
+            let y = f.eval(x);
+            out.line(format_args!("{} {} {:08x} {:08x}", f.name(), i, x.to_bits(), y.to_bits()));
+        }
+    }
+    out.line(format_args!("@end math"));
+
+    out.line(format_args!("@suite dot {}", golden::DOT_CASES));
+    for case in 0..golden::DOT_CASES {
+        let y = golden::dot_output(case);
+        out.line(format_args!("dot {} {:08x} {:08x}", case, case as u32, y.to_bits()));
+    }
+    out.line(format_args!("@end dot"));
+
+    out.line(format_args!("@pass"));
+    out.flush();
+    debug::exit(debug::EXIT_SUCCESS);
+    loop {
+        cortex_m::asm::bkpt();
+    }
+}
+
+#[panic_handler]
+fn panic(info: &core::panic::PanicInfo) -> ! {
+    if let Ok(mut host) = hio::hstdout() {
+        let _ = writeln!(host, "@panic {info}");
+    }
+    fail()
+}
+
+#[exception]
+unsafe fn HardFault(frame: &ExceptionFrame) -> ! {
+    if let Ok(mut host) = hio::hstdout() {
+        let _ = writeln!(host, "@hardfault pc={:#010x}", frame.pc());
+    }
+    fail()
+}

@@ -1,0 +1,106 @@
+//! Parsing the QEMU binary's report and producing the host's twin of it.
+use crate::compare::Record;
+use anyhow::{Result, bail};
+use firmware::golden::{self, MathFn};
+
+/// One `@suite` block of the QEMU report.
+#[derive(Debug, Default)]
+pub struct Suite {
+    /// Suite name (`math`, `dot`, ...).
+    pub name: String,
+    /// Records in output order.
+    pub records: Vec<Record>,
+}
+
+/// Parses the QEMU report: `@suite NAME N`, record lines `fn index input_hex output_hex`,
+/// `@end NAME`, and a final `@pass`.
+pub fn parse_report(text: &str) -> Result<Vec<Suite>> {
+    let mut suites: Vec<Suite> = Vec::new();
+    let mut current: Option<Suite> = None;
+    let mut passed = false;
+    for (n, line) in text.lines().enumerate() {
+        let line_no = n + 1;
+        let mut words = line.split_whitespace();
+        match words.next() {
+            None => {}
+            Some("@suite") => {
+                let name = words.next().unwrap_or_default().to_string();
+                current = Some(Suite { name, records: Vec::new() });
+            }
+            Some("@end") => match current.take() {
+                Some(s) => suites.push(s),
+                None => bail!("report line {line_no}: @end without @suite"),
+            },
+            Some("@pass") => passed = true,
+            Some(word) if word.starts_with('@') => bail!("report line {line_no}: target reported `{line}`"),
+            Some(func) => {
+                let Some(suite) = current.as_mut() else {
+                    bail!("report line {line_no}: record outside a suite: `{line}`");
+                };
+                let fields: Vec<&str> = words.collect();
+                let [index, input, output] = fields[..] else {
+                    bail!("report line {line_no}: expected `fn index input output`, got `{line}`");
+                };
+                let parse_hex = |s: &str| u32::from_str_radix(s, 16);
+                match (index.parse(), parse_hex(input), parse_hex(output)) {
+                    (Ok(index), Ok(input_bits), Ok(output_bits)) => suite.records.push(Record {
+                        function: func.to_string(),
+                        index,
+                        input_bits,
+                        output_bits,
+                    }),
+                    _ => bail!("report line {line_no}: malformed numbers in `{line}`"),
+                }
+            }
+        }
+    }
+    if current.is_some() {
+        bail!("report ended inside a suite (target stopped early)");
+    }
+    if !passed {
+        bail!("report has no @pass line (target did not finish)");
+    }
+    Ok(suites)
+}
+
+/// The host's computation of the `math` suite, with the same firmware functions.
+pub fn host_math() -> Vec<Record> {
+    let mut out = Vec::with_capacity(MathFn::ALL.len() * golden::MATH_POINTS);
+    for f in MathFn::ALL {
+        for i in 0..golden::MATH_POINTS {
+            let x = f.input(i);
+            out.push(Record::new(f.name(), i, x.to_bits(), f.eval(x).to_bits()));
+        }
+    }
+    out
+}
+
+/// The host's computation of the `dot` suite.
+pub fn host_dot() -> Vec<Record> {
+    (0..golden::DOT_CASES)
+        .map(|case| Record::new("dot", case, case as u32, golden::dot_output(case).to_bits()))
+        .collect()
+}
+
+/// Outcome of comparing one suite.
+#[derive(Debug)]
+pub struct SuiteCheck {
+    /// Suite name.
+    pub name: &'static str,
+    /// Number of records compared, or the first mismatch.
+    pub result: Result<usize, crate::compare::Mismatch>,
+}
+
+/// Compares every suite of a QEMU report with the host's computation.
+pub fn check_report(report: &str) -> Result<Vec<SuiteCheck>> {
+    let suites = parse_report(report)?;
+    let host: [(&'static str, Vec<Record>); 2] = [("math", host_math()), ("dot", host_dot())];
+    let mut checks = Vec::new();
+    for (name, host_records) in host {
+        let Some(suite) = suites.iter().find(|s| s.name == name) else {
+            bail!("the QEMU report has no `{name}` suite");
+        };
+        checks.push(SuiteCheck { name, result: crate::compare::compare(&suite.records, &host_records) });
+    }
+    Ok(checks)
+}

@@ -1,0 +1,10 @@
+//! Host-side proof for the firmware: builds the target binaries, runs the QEMU one,
+//! and compares what the target computed with the same firmware functions on the
+//! host, bit for bit.
+#![forbid(unsafe_code)]
+#![warn(missing_docs)]
+
+pub mod compare;
+pub mod golden;
+pub mod qemu;
+pub mod target;

@@ -1,0 +1,85 @@
+//! Building the firmware's target binaries from the host.
+use anyhow::{Context, Result, bail};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+/// The firmware's target triple.
+pub const TARGET: &str = "thumbv7em-none-eabihf";
+
+/// The workspace root (where `Cargo.toml`, `memory.x` and `.cargo/` live).
+pub fn workspace_root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .expect("host-tests lives one level below the workspace root")
+        .to_path_buf()
+}
+
+/// Target directory for the thumb builds: separate from the host's, so a build
+/// started from inside `cargo test` never waits on the outer cargo's lock.
+pub fn target_dir() -> PathBuf {
+    workspace_root().join("target").join("thumb")
+}
+
+/// A firmware binary for the target.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FirmwareBin {
+    /// The STM32G474RE board binary (root `memory.x`).
+    Board,
+    /// The QEMU mps2-an386 test binary (package `firmware/qemu`).
+    Qemu,
+}
+
+impl FirmwareBin {
+    /// Cargo binary name (also the ELF's file name).
+    pub const fn name(self) -> &'static str {
+        match self {
+            FirmwareBin::Board => "board",
+            FirmwareBin::Qemu => "firmware-qemu",
+        }
+    }
+
+    /// Cargo arguments that select this binary's package and features.
+    fn cargo_args(self) -> &'static [&'static str] {
+        match self {
+            FirmwareBin::Board => &["-p", "firmware", "--features", "board"],
+            FirmwareBin::Qemu => &["--manifest-path", "firmware/qemu/Cargo.toml"],
+        }
+    }
+}
+
+/// Fails with what to install when the Rust target is missing.
+pub fn require_target() -> Result<()> {
+    let out = Command::new("rustup")
+        .args(["target", "list", "--installed"])
+        .current_dir(workspace_root())
+        .output();
+    match out {
+        Ok(o) if String::from_utf8_lossy(&o.stdout).lines().any(|l| l.trim() == TARGET) => Ok(()),
+        Ok(_) => bail!(
+            "the Rust target {TARGET} is not installed: run `rustup target add {TARGET}` \
+             (or `bash .ci/run`, which installs it)"
+        ),
+        Err(e) => bail!("cannot run rustup to check for the {TARGET} target ({e}); install rustup"),
+    }
+}
+
+/// Builds a firmware binary in release for the target and returns the ELF path.
+pub fn build(bin: FirmwareBin) -> Result<PathBuf> {
+    require_target()?;
+    let status = Command::new(env!("CARGO"))
+        .current_dir(workspace_root())
+        .args(["build", "--release", "--target", TARGET, "--bin", bin.name()])
+        .args(bin.cargo_args())
+        .arg("--target-dir")
+        .arg(target_dir())
+        .status()
+        .context("running cargo to build the firmware")?;
+    if !status.success() {
+        bail!("building firmware binary `{}` for {TARGET} failed ({status})", bin.name());
+    }
+    let elf = target_dir().join(TARGET).join("release").join(bin.name());
+    if !elf.is_file() {
+        bail!("cargo reported success but {} is missing", elf.display());
+    }
+    Ok(elf)
+}

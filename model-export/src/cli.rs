@@ -1,0 +1,43 @@
+//! Command-line interface: one subcommand per pipeline stage.
+use clap::{Parser, Subcommand};
+
+/// `model-export`: identify a robot's dynamics, learn what the model misses, and
+/// export both as fixed-size arrays for the joint-drive firmware.
+#[derive(Debug, Parser)]
+#[command(name = "model-export", version, about)]
+pub struct Cli {
+    /// The stage to run.
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// Pipeline stages.
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Print the firmware's math primitives over a range (a smoke test of the shared numerics).
+    Primitives {
+        /// Number of points in [-4, 4].
+        #[arg(long, default_value_t = 9)]
+        points: usize,
+    },
+}
+
+/// Runs one parsed command line.
+pub fn run(cli: Cli) -> anyhow::Result<()> {
+    match cli.command {
+        Command::Primitives { points } => {
+            println!("{:>10} {:>12} {:>12} {:>12}", "x", "exp", "tanh", "sigmoid");
+            for i in 0..points {
+                let x = -4.0 + 8.0 * i as f32 / (points.max(2) - 1) as f32;
+                println!(
+                    "{:>10.4} {:>12.6} {:>12.6} {:>12.6}",
+                    x,
+                    firmware::math::exp(x),
+                    firmware::math::tanh(x),
+                    firmware::math::sigmoid(x)
+                );
+            }
+            Ok(())
+        }
+    }
+}

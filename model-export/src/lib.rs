@@ -1,0 +1,6 @@
+//! Host side of the joint feedforward: everything from robot description and logs
+//! to the fixed-size arrays the firmware compiles in.
+#![forbid(unsafe_code)]
+#![warn(missing_docs)]
+
+pub mod cli;
