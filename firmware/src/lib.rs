@@ -7,6 +7,8 @@
 #![deny(unsafe_code)]
 #![warn(missing_docs)]
 
+pub mod control;
+pub mod drivers;
 pub mod golden;
 pub mod log;
 pub mod math;

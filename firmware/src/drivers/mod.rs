@@ -1,0 +1,1 @@
+//! Peripheral drivers behind embedded-hal 1.0 traits.
