@@ -286,3 +286,114 @@ impl JointDrive {
         }
     }
 }
+
+#[cfg(test)]
+pub(crate) mod tests {
+    use super::*;
+    use crate::control::foc::MotorParameters;
+
+    pub(crate) fn config() -> DriveConfig {
+        DriveConfig {
+            current: CurrentLoopConfig {
+                motor: MotorParameters {
+                    pole_pairs: 7,
+                    phase_resistance_ohm: 0.3,
+                    phase_inductance_h: 3e-4,
+                    flux_linkage_wb: 0.01,
+                },
+                pwm_hz: 20_000.0,
+                bandwidth_rad_s: 6000.0,
+                max_modulation: 0.95,
+                decoupling: true,
+            },
+            cascade: CascadeConfig {
+                rate_hz: 5000.0,
+                position_kp: 50.0,
+                position_ki: 0.0,
+                position_kd: 0.0,
+                max_velocity_rad_s: 3.0,
+                velocity_kp: 5.0,
+                velocity_ki: 50.0,
+                velocity_kd: 0.0,
+                max_current_a: 10.0,
+                velocity_filter_alpha: 0.2,
+            },
+            gear_ratio: 100.0,
+            encoder_offset_rad: 0.1,
+            max_current_a: 10.0,
+            overcurrent_trip_a: 20.0,
+            bus_min_v: 18.0,
+            bus_max_v: 60.0,
+            max_abs_q_ref_rad: 7.0,
+        }
+    }
+
+    fn ok_sample(angle: f32) -> SensorSample {
+        SensorSample { phase_current_a: [0.1, -0.2], motor_angle_rad: angle, bus_v: 48.0 }
+    }
+
+    #[test]
+    fn decimation_and_encoder_unwrapping() {
+        let cfg = config();
+        assert_eq!(cfg.outer_decimation(), 4);
+        let mut d = JointDrive::new(cfg);
+        d.set_position_origin(0.5);
+        // Spin the motor forward 3.5 turns in small steps through the wrap.
+        let steps = 3500;
+        let mut out = DriveOutput::default();
+        for k in 0..=steps {
+            let motor = 0.2 + k as f32 * (3.5 * TAU / steps as f32);
+            out = d.pwm_tick(&ok_sample(motor % TAU));
+        }
+        let want = 0.5 + 3.5 * TAU / 100.0;
+        assert!((out.q_rad - want).abs() < 1e-4, "{} vs {want}", out.q_rad);
+        // and back
+        for k in (0..=steps).rev() {
+            let motor = 0.2 + k as f32 * (3.5 * TAU / steps as f32);
+            out = d.pwm_tick(&ok_sample(motor % TAU));
+        }
+        assert!((out.q_rad - 0.5).abs() < 1e-4, "{}", out.q_rad);
+    }
+
+    #[test]
+    fn sensor_faults_switch_the_bridge_off_and_back_on() {
+        let cases: [(SensorSample, FaultFlags); 6] = [
+            (SensorSample { phase_current_a: [f32::NAN, 0.0], ..ok_sample(1.0) }, FaultFlags::SENSOR_INVALID),
+            (SensorSample { motor_angle_rad: f32::INFINITY, ..ok_sample(1.0) }, FaultFlags::SENSOR_INVALID),
+            (SensorSample { motor_angle_rad: 1e9, ..ok_sample(1.0) }, FaultFlags::SENSOR_INVALID),
+            (SensorSample { bus_v: f32::NEG_INFINITY, ..ok_sample(1.0) }, FaultFlags::SENSOR_INVALID),
+            (SensorSample { phase_current_a: [15.0, 15.0], ..ok_sample(1.0) }, FaultFlags::OVERCURRENT),
+            (SensorSample { bus_v: 90.0, ..ok_sample(1.0) }, FaultFlags::BUS_VOLTAGE),
+        ];
+        for (bad, flag) in cases {
+            let mut d = JointDrive::new(config());
+            d.set_reference(&JointReference { q_rad: 0.3, qd_rad_s: 0.0, qdd_rad_s2: 0.0 });
+            for _ in 0..10 {
+                assert!(d.pwm_tick(&ok_sample(1.0)).bridge_enabled);
+            }
+            let o = d.pwm_tick(&bad);
+            assert!(!o.bridge_enabled && o.faults.contains(flag) && o.duties == [0.5; 3], "{o:?}");
+            let o = d.pwm_tick(&ok_sample(1.0));
+            assert!(o.bridge_enabled && o.faults.is_empty(), "{o:?}");
+            assert!(d.latched_faults().contains(flag));
+        }
+    }
+
+    #[test]
+    fn bad_reference_is_held_and_bad_feedforward_zeroed() {
+        let mut d = JointDrive::new(config());
+        let good = JointReference { q_rad: 0.3, qd_rad_s: 0.1, qdd_rad_s2: 0.0 };
+        d.set_reference(&good);
+        d.set_reference(&JointReference { q_rad: f32::NAN, ..good });
+        d.set_feedforward_current(f32::INFINITY);
+        let o = d.pwm_tick(&ok_sample(1.0));
+        assert!(o.faults.contains(FaultFlags::REFERENCE_INVALID));
+        assert_eq!(*d.reference(), good);
+        d.set_feedforward_current(1e6);
+        let o = d.pwm_tick(&ok_sample(1.0));
+        assert!(o.faults.contains(FaultFlags::IQ_CLAMPED) && o.iq_ref_a == 10.0, "{o:?}");
+        d.set_feedforward_current(0.0);
+        let o = d.pwm_tick(&ok_sample(1.0));
+        assert!(!o.faults.contains(FaultFlags::REFERENCE_INVALID));
+    }
+}
