@@ -91,7 +91,8 @@ fn drive_outputs_stay_finite_and_within_limits() {
                 qd_rad_s: nasty(&mut rng, 3.0),
                 qdd_rad_s2: nasty(&mut rng, 50.0),
             };
-            bad_reference = !(r.q_rad.abs() <= 7.0 && r.qd_rad_s.abs() <= 3.0 && r.qdd_rad_s2.is_finite());
+            bad_reference =
+                !(r.q_rad.abs() <= 7.0 && r.qd_rad_s.abs() <= 3.0 && r.qdd_rad_s2.is_finite());
             drive.set_reference(&r);
         }
         if rng.gen_range(0..8) == 0 {
@@ -101,14 +102,23 @@ fn drive_outputs_stay_finite_and_within_limits() {
         }
         let o = drive.pwm_tick(&sample);
 
-        assert!(o.duties.iter().all(|d| (0.0..=1.0).contains(d)), "{o:?} from {sample:?}");
+        assert!(
+            o.duties.iter().all(|d| (0.0..=1.0).contains(d)),
+            "{o:?} from {sample:?}"
+        );
         assert!(o.iq_ref_a.abs() <= cfg.max_current_a, "{o:?}");
-        assert!(o.q_rad.is_finite() && o.qd_rad_s.is_finite() && o.iq_meas_a.is_finite(), "{o:?}");
+        assert!(
+            o.q_rad.is_finite() && o.qd_rad_s.is_finite() && o.iq_meas_a.is_finite(),
+            "{o:?}"
+        );
         let [ia, ib] = sample.phase_current_a;
         let sensors_finite = ia.is_finite() && ib.is_finite() && sample.bus_v.is_finite();
         let angle_ok = sample.motor_angle_rad.abs() <= 4.0 * core::f32::consts::PI;
         if !sensors_finite || !angle_ok {
-            assert!(o.faults.contains(FaultFlags::SENSOR_INVALID), "{o:?} from {sample:?}");
+            assert!(
+                o.faults.contains(FaultFlags::SENSOR_INVALID),
+                "{o:?} from {sample:?}"
+            );
         }
         let tripped = ia.abs() > 20.0 || ib.abs() > 20.0 || (ia + ib).abs() > 20.0;
         let bus_bad = !(18.0..=60.0).contains(&sample.bus_v);
@@ -129,8 +139,13 @@ fn drive_outputs_stay_finite_and_within_limits() {
         }
         assert!(drive.reference().q_rad.abs() <= 7.0 && drive.reference().qd_rad_s.abs() <= 3.0);
     }
-    println!("drive: {DRIVE_TICKS} ticks; sensor-invalid / overcurrent / bus / reference faults: {counts:?}");
-    assert!(counts.iter().all(|&c| c > 1000), "every fault kind exercised: {counts:?}");
+    println!(
+        "drive: {DRIVE_TICKS} ticks; sensor-invalid / overcurrent / bus / reference faults: {counts:?}"
+    );
+    assert!(
+        counts.iter().all(|&c| c > 1000),
+        "every fault kind exercised: {counts:?}"
+    );
 }
 
 /// A predictor returning whatever the test puts in `next`.
@@ -189,8 +204,14 @@ fn random_state(rng: &mut ChaCha8Rng, corrupt: bool) -> JointState {
 fn compensator_outputs_stay_finite_and_within_limits() {
     let cfg = compensator_config();
     let mut rng = ChaCha8Rng::seed_from_u64(0xc0ffee);
-    let model = Scripted { next: [0.0; 3], resets: 0 };
-    let lstm = Scripted { next: [0.0; 3], resets: 0 };
+    let model = Scripted {
+        next: [0.0; 3],
+        resets: 0,
+    };
+    let lstm = Scripted {
+        next: [0.0; 3],
+        resets: 0,
+    };
     let mut comp: Compensator<3, Scripted, Scripted> = Compensator::new(cfg, model, lstm).unwrap();
     let mut prev = 0.0f32;
     let mut seq = [0u16; 3];
@@ -213,8 +234,16 @@ fn compensator_outputs_stay_finite_and_within_limits() {
             if !replay {
                 seq[j as usize] = seq[j as usize].wrapping_add(rng.gen_range(1..3));
             }
-            let late = if rng.gen_range(0..50) == 0 { rng.gen_range(0..20_000) } else { 0 };
-            let joint = if rng.gen_range(0..200) == 0 { rng.gen_range(0..=255) } else { j };
+            let late = if rng.gen_range(0..50) == 0 {
+                rng.gen_range(0..20_000)
+            } else {
+                0
+            };
+            let joint = if rng.gen_range(0..200) == 0 {
+                rng.gen_range(0..=255)
+            } else {
+                j
+            };
             let m = JointStateMessage {
                 joint,
                 sequence: seq[j as usize],
@@ -231,7 +260,11 @@ fn compensator_outputs_stay_finite_and_within_limits() {
         }
         // Predictions: plausible, or garbage.
         let model_nm = nasty(&mut rng, 150.0);
-        let lstm_nm = if rng.gen_range(0..4) == 0 { nasty(&mut rng, 300.0) } else { model_nm + rng.gen_range(-10.0..10.0) };
+        let lstm_nm = if rng.gen_range(0..4) == 0 {
+            nasty(&mut rng, 300.0)
+        } else {
+            model_nm + rng.gen_range(-10.0..10.0)
+        };
         comp.model_mut().next = [rng.gen_range(-1.0..1.0), model_nm, f32::NAN];
         comp.lstm_mut().next = [f32::INFINITY, lstm_nm, 0.0];
         let own_corrupt = rng.gen_range(0..30) == 0;
@@ -239,9 +272,18 @@ fn compensator_outputs_stay_finite_and_within_limits() {
         let o = comp.tick(&own, now_us);
 
         // Always finite and within limits.
-        assert!(o.torque_nm.is_finite() && o.torque_nm.abs() <= cfg.max_torque_nm, "{o:?}");
-        assert!(o.current_a.is_finite() && o.current_a.abs() <= cfg.max_current_a, "{o:?}");
-        assert!((o.torque_nm - prev).abs() <= step * 1.0001, "rate: {prev} -> {o:?}");
+        assert!(
+            o.torque_nm.is_finite() && o.torque_nm.abs() <= cfg.max_torque_nm,
+            "{o:?}"
+        );
+        assert!(
+            o.current_a.is_finite() && o.current_a.abs() <= cfg.max_current_a,
+            "{o:?}"
+        );
+        assert!(
+            (o.torque_nm - prev).abs() <= step * 1.0001,
+            "rate: {prev} -> {o:?}"
+        );
         prev = o.torque_nm;
         // The flags say why.
         if rejected {
@@ -256,32 +298,52 @@ fn compensator_outputs_stay_finite_and_within_limits() {
         let input_fault = FaultFlags::OWN_STATE_INVALID | FaultFlags::STATE_STALE;
         match o.source {
             FeedforwardSource::Zero => {
-                assert!(o.faults.intersects(input_fault | FaultFlags::MODEL_INVALID), "{o:?}");
+                assert!(
+                    o.faults.intersects(input_fault | FaultFlags::MODEL_INVALID),
+                    "{o:?}"
+                );
                 sources[0] += 1;
             }
             FeedforwardSource::Model => {
-                assert!(!o.faults.intersects(input_fault | FaultFlags::MODEL_INVALID), "{o:?}");
+                assert!(
+                    !o.faults.intersects(input_fault | FaultFlags::MODEL_INVALID),
+                    "{o:?}"
+                );
                 assert!(model_nm.abs() <= 300.0);
                 sources[1] += 1;
             }
             FeedforwardSource::ModelLstm => {
-                assert!(!o.faults.intersects(input_fault | FaultFlags::MODEL_INVALID), "{o:?}");
-                assert!(!o.faults.intersects(FaultFlags::LSTM_INVALID | FaultFlags::LSTM_IMPLAUSIBLE));
+                assert!(
+                    !o.faults.intersects(input_fault | FaultFlags::MODEL_INVALID),
+                    "{o:?}"
+                );
+                assert!(
+                    !o.faults
+                        .intersects(FaultFlags::LSTM_INVALID | FaultFlags::LSTM_IMPLAUSIBLE)
+                );
                 assert!(lstm_nm.abs() <= 300.0 && (lstm_nm - model_nm).abs() <= 20.0);
                 sources[2] += 1;
             }
         }
         if !o.faults.intersects(input_fault) {
             if !(model_nm.abs() <= 300.0) {
-                assert!(o.faults.contains(FaultFlags::MODEL_INVALID) && o.source == FeedforwardSource::Zero);
+                assert!(
+                    o.faults.contains(FaultFlags::MODEL_INVALID)
+                        && o.source == FeedforwardSource::Zero
+                );
             }
         }
-        if o.faults.intersects(FaultFlags::LSTM_INVALID | FaultFlags::LSTM_IMPLAUSIBLE) {
+        if o.faults
+            .intersects(FaultFlags::LSTM_INVALID | FaultFlags::LSTM_IMPLAUSIBLE)
+        {
             assert_eq!(o.source, FeedforwardSource::Model);
         }
         flags_seen |= o.faults;
     }
-    println!("compensator: {COMPENSATOR_TICKS} ticks; zero / model / model+LSTM: {sources:?}; flags seen {:#06x}", flags_seen.bits());
+    println!(
+        "compensator: {COMPENSATOR_TICKS} ticks; zero / model / model+LSTM: {sources:?}; flags seen {:#06x}",
+        flags_seen.bits()
+    );
     assert!(sources.iter().all(|&c| c > 10_000), "{sources:?}");
     for f in [
         FaultFlags::STATE_REJECTED,

@@ -54,7 +54,11 @@ impl Pid {
     /// limit, and is itself bounded by the limit.
     pub fn update(&mut self, setpoint: f32, measurement: f32, feedforward: f32, dt_s: f32) -> f32 {
         let error = setpoint - measurement;
-        let raw_derivative = if self.primed { (measurement - self.last_measurement) / dt_s } else { 0.0 };
+        let raw_derivative = if self.primed {
+            (measurement - self.last_measurement) / dt_s
+        } else {
+            0.0
+        };
         self.primed = true;
         self.last_measurement = measurement;
         self.derivative += self.derivative_alpha * (raw_derivative - self.derivative);
@@ -136,7 +140,13 @@ impl PositionVelocityCascade {
                 1.0,
                 config.max_velocity_rad_s,
             ),
-            velocity: Pid::new(config.velocity_kp, config.velocity_ki, config.velocity_kd, 0.5, config.max_current_a),
+            velocity: Pid::new(
+                config.velocity_kp,
+                config.velocity_ki,
+                config.velocity_kd,
+                0.5,
+                config.max_current_a,
+            ),
             dt_s: 1.0 / config.rate_hz,
         }
     }
@@ -155,7 +165,9 @@ impl PositionVelocityCascade {
     /// One outer-loop step: reference and measured position/velocity -> q-current
     /// command, A (within +-max_current_a).
     pub fn step(&mut self, reference: &JointReference, q_rad: f32, qd_rad_s: f32) -> f32 {
-        let v_cmd = self.position.update(reference.q_rad, q_rad, reference.qd_rad_s, self.dt_s);
+        let v_cmd = self
+            .position
+            .update(reference.q_rad, q_rad, reference.qd_rad_s, self.dt_s);
         self.velocity.update(v_cmd, qd_rad_s, 0.0, self.dt_s)
     }
 }
@@ -196,7 +208,11 @@ mod tests {
         };
         let mut c = PositionVelocityCascade::new(cfg);
         let (mut q, mut qd) = (0.0f32, 0.0f32);
-        let r = JointReference { q_rad: 1.0, qd_rad_s: 0.0, qdd_rad_s2: 0.0 };
+        let r = JointReference {
+            q_rad: 1.0,
+            qd_rad_s: 0.0,
+            qdd_rad_s2: 0.0,
+        };
         for _ in 0..3000 {
             let i = c.step(&r, q, qd);
             qd += i * 1e-3;

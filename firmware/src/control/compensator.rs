@@ -118,7 +118,11 @@ impl CompensatorConfig {
             && positive(self.max_current_a)
             && self.warmup_ticks > 0
             && self.watchdog_ticks > 0;
-        if ok { Ok(()) } else { Err(ConfigError::NonPositive) }
+        if ok {
+            Ok(())
+        } else {
+            Err(ConfigError::NonPositive)
+        }
     }
 }
 
@@ -227,7 +231,8 @@ impl<const J: usize, M: TorquePredictor<J>, L: TorquePredictor<J>> Compensator<J
         let mut f = FaultFlags::NONE;
         if j >= J || j == self.config.own_joint || !self.config.state_limits.accepts(&msg.state) {
             f = FaultFlags::STATE_REJECTED;
-        } else if self.received[j] && (msg.sequence.wrapping_sub(self.last_sequence[j]) as i16) <= 0 {
+        } else if self.received[j] && (msg.sequence.wrapping_sub(self.last_sequence[j]) as i16) <= 0
+        {
             f = FaultFlags::STATE_OUT_OF_ORDER;
         } else if let (Some(s), Some(seq), Some(ts), Some(rx), Some(age)) = (
             self.states.get_mut(j),
@@ -285,7 +290,11 @@ impl<const J: usize, M: TorquePredictor<J>, L: TorquePredictor<J>> Compensator<J
                 self.ff_blend_ticks = 0;
             }
             self.states[own_j] = *own;
-            let mut input = PredictorInput { joints: self.states, own_joint: own_j, model_nm: [0.0; J] };
+            let mut input = PredictorInput {
+                joints: self.states,
+                own_joint: own_j,
+                model_nm: [0.0; J],
+            };
             let model_nm = self.model.predict_nm(&input);
             let model = model_nm[own_j];
             if !(model.abs() <= cfg.state_limits.max_abs_tau_nm) {
@@ -324,14 +333,23 @@ impl<const J: usize, M: TorquePredictor<J>, L: TorquePredictor<J>> Compensator<J
         } else {
             target
         };
-        self.torque_nm = if torque.is_finite() { torque.clamp(-max, max) } else { 0.0 };
+        self.torque_nm = if torque.is_finite() {
+            torque.clamp(-max, max)
+        } else {
+            0.0
+        };
         let mut current_a = self.torque_nm / cfg.drive_gain_nm_per_a;
         if current_a.abs() > cfg.max_current_a {
             faults |= FaultFlags::FF_MAGNITUDE_LIMITED;
         }
         current_a = current_a.clamp(-cfg.max_current_a, cfg.max_current_a);
         self.latched |= faults;
-        CompensatorOutput { torque_nm: self.torque_nm, current_a, source, faults }
+        CompensatorOutput {
+            torque_nm: self.torque_nm,
+            current_a,
+            source,
+            faults,
+        }
     }
 
     /// The LSTM stage: the model's torque corrected by the LSTM, or the model alone
@@ -440,17 +458,33 @@ mod tests {
     type Comp = Compensator<3, TestModel, TestLstm>;
 
     fn new() -> Comp {
-        Compensator::new(config(), TestModel { forced: None }, TestLstm { forced: None, resets: 0 }).unwrap()
+        Compensator::new(
+            config(),
+            TestModel { forced: None },
+            TestLstm {
+                forced: None,
+                resets: 0,
+            },
+        )
+        .unwrap()
     }
 
     fn state(q: f32) -> JointState {
-        JointState { q_ref_rad: q, ..Default::default() }
+        JointState {
+            q_ref_rad: q,
+            ..Default::default()
+        }
     }
 
     /// Sends fresh states of joints 0 and 2 and ticks once.
     fn tick(c: &mut Comp, k: u32, own_q: f32) -> CompensatorOutput {
         for j in [0u8, 2] {
-            c.receive(&JointStateMessage { joint: j, sequence: k as u16, timestamp_us: k * 1000, state: state(0.5) });
+            c.receive(&JointStateMessage {
+                joint: j,
+                sequence: k as u16,
+                timestamp_us: k * 1000,
+                state: state(0.5),
+            });
         }
         c.tick(&state(own_q), k * 1000)
     }
@@ -486,7 +520,12 @@ mod tests {
         let mut tripped = 0;
         for i in 0..10 {
             k += 1;
-            c.receive(&JointStateMessage { joint: 0, sequence: k as u16, timestamp_us: k * 1000, state: state(0.5) });
+            c.receive(&JointStateMessage {
+                joint: 0,
+                sequence: k as u16,
+                timestamp_us: k * 1000,
+                state: state(0.5),
+            });
             let o = c.tick(&state(3.0), k * 1000);
             if o.faults.contains(FaultFlags::STATE_STALE) {
                 assert_eq!((o.source, o.torque_nm), (FeedforwardSource::Zero, 0.0));
@@ -498,8 +537,14 @@ mod tests {
         assert_eq!(tripped, 5);
         let resets = c.lstm_mut().resets;
         let o = tick(&mut c, k + 1, 3.0);
-        assert!(o.faults.contains(FaultFlags::FF_WARMUP) && o.source == FeedforwardSource::ModelLstm);
-        assert_eq!(c.lstm_mut().resets, resets + 1, "LSTM restarts after the gap");
+        assert!(
+            o.faults.contains(FaultFlags::FF_WARMUP) && o.source == FeedforwardSource::ModelLstm
+        );
+        assert_eq!(
+            c.lstm_mut().resets,
+            resets + 1,
+            "LSTM restarts after the gap"
+        );
         settle(&mut c, k + 1, 7.0, FeedforwardSource::ModelLstm);
         assert!(c.latched_faults().contains(FaultFlags::STATE_STALE));
     }
@@ -512,7 +557,12 @@ mod tests {
         let mut o = CompensatorOutput::default();
         for i in 0..3 {
             for j in [0u8, 2] {
-                let m = JointStateMessage { joint: j, sequence: (k + 1 + i) as u16, timestamp_us: 0, state: state(0.5) };
+                let m = JointStateMessage {
+                    joint: j,
+                    sequence: (k + 1 + i) as u16,
+                    timestamp_us: 0,
+                    state: state(0.5),
+                };
                 c.receive(&m);
             }
             o = c.tick(&state(3.0), 30_000 + k * 1000);
@@ -526,19 +576,42 @@ mod tests {
         let mut c = new();
         let k = settle(&mut c, 0, 7.0, FeedforwardSource::ModelLstm);
         for bad in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY, 1e30] {
-            let m = JointStateMessage { joint: 0, sequence: (k + 1) as u16, timestamp_us: k * 1000, state: state(bad) };
+            let m = JointStateMessage {
+                joint: 0,
+                sequence: (k + 1) as u16,
+                timestamp_us: k * 1000,
+                state: state(bad),
+            };
             assert_eq!(c.receive(&m), FaultFlags::STATE_REJECTED);
         }
         // A wrong joint index and this joint's own index are rejected too.
-        let m = JointStateMessage { joint: 7, sequence: 1, timestamp_us: 0, state: state(0.0) };
+        let m = JointStateMessage {
+            joint: 7,
+            sequence: 1,
+            timestamp_us: 0,
+            state: state(0.0),
+        };
         assert_eq!(c.receive(&m), FaultFlags::STATE_REJECTED);
-        let m = JointStateMessage { joint: 1, sequence: 1, timestamp_us: 0, state: state(0.0) };
+        let m = JointStateMessage {
+            joint: 1,
+            sequence: 1,
+            timestamp_us: 0,
+            state: state(0.0),
+        };
         assert_eq!(c.receive(&m), FaultFlags::STATE_REJECTED);
         // A replayed sequence number.
-        let m = JointStateMessage { joint: 0, sequence: k as u16, timestamp_us: 0, state: state(0.0) };
+        let m = JointStateMessage {
+            joint: 0,
+            sequence: k as u16,
+            timestamp_us: 0,
+            state: state(0.0),
+        };
         assert_eq!(c.receive(&m), FaultFlags::STATE_OUT_OF_ORDER);
         let o = tick(&mut c, k + 1, 3.0);
-        assert!(o.faults.contains(FaultFlags::STATE_REJECTED | FaultFlags::STATE_OUT_OF_ORDER));
+        assert!(
+            o.faults
+                .contains(FaultFlags::STATE_REJECTED | FaultFlags::STATE_OUT_OF_ORDER)
+        );
         assert_eq!((o.source, o.torque_nm), (FeedforwardSource::ModelLstm, 7.0));
         settle(&mut c, k + 1, 7.0, FeedforwardSource::ModelLstm);
     }
@@ -605,7 +678,11 @@ mod tests {
             let o = tick(&mut c, k + 1 + i, 3.0);
             assert!(o.faults.contains(FaultFlags::FF_WARMUP));
             let want = 6.0 + i as f32 / 10.0;
-            assert!((o.torque_nm - want).abs() < 1e-5, "{} vs {want}", o.torque_nm);
+            assert!(
+                (o.torque_nm - want).abs() < 1e-5,
+                "{} vs {want}",
+                o.torque_nm
+            );
             assert!(o.torque_nm >= last);
             last = o.torque_nm;
         }
@@ -617,9 +694,17 @@ mod tests {
         let mut cfg = config();
         cfg.max_torque_rate_nm_s = 1000.0; // 1 N*m per tick
         cfg.warmup_ticks = 1;
-        let mut c: Comp =
-            Compensator::new(cfg, TestModel { forced: Some(100.0) }, TestLstm { forced: Some(101.0), resets: 0 })
-                .unwrap();
+        let mut c: Comp = Compensator::new(
+            cfg,
+            TestModel {
+                forced: Some(100.0),
+            },
+            TestLstm {
+                forced: Some(101.0),
+                resets: 0,
+            },
+        )
+        .unwrap();
         let mut prev = 0.0;
         for k in 1..80 {
             let o = tick(&mut c, k, 3.0);
@@ -639,13 +724,27 @@ mod tests {
         let mut cfg = config();
         cfg.own_joint = 3;
         assert!(matches!(
-            Comp::new(cfg, TestModel { forced: None }, TestLstm { forced: None, resets: 0 }),
+            Comp::new(
+                cfg,
+                TestModel { forced: None },
+                TestLstm {
+                    forced: None,
+                    resets: 0
+                }
+            ),
             Err(ConfigError::OwnJointOutOfRange)
         ));
         let mut cfg = config();
         cfg.drive_gain_nm_per_a = f32::NAN;
         assert!(matches!(
-            Comp::new(cfg, TestModel { forced: None }, TestLstm { forced: None, resets: 0 }),
+            Comp::new(
+                cfg,
+                TestModel { forced: None },
+                TestLstm {
+                    forced: None,
+                    resets: 0
+                }
+            ),
             Err(ConfigError::NonPositive)
         ));
     }
@@ -657,7 +756,12 @@ mod tests {
         let mut o = CompensatorOutput::default();
         for k in 1..30 {
             for j in [0u8, 2] {
-                c.receive(&JointStateMessage { joint: j, sequence: k as u16, timestamp_us: k * 1000, state: state(0.5) });
+                c.receive(&JointStateMessage {
+                    joint: j,
+                    sequence: k as u16,
+                    timestamp_us: k * 1000,
+                    state: state(0.5),
+                });
             }
             o = c.tick(&state(3.0), k * 1000);
         }

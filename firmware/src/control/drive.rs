@@ -253,7 +253,9 @@ impl JointDrive {
             if !self.qd_rad_s.is_finite() {
                 self.qd_rad_s = 0.0;
             }
-            self.iq_cmd_a = self.cascade.step(&self.reference, self.q_rad, self.qd_rad_s);
+            self.iq_cmd_a = self
+                .cascade
+                .step(&self.reference, self.q_rad, self.qd_rad_s);
         }
         self.phase += 1;
         if self.phase >= self.decimation {
@@ -270,7 +272,13 @@ impl JointDrive {
         let pole_pairs = cfg.current.motor.pole_pairs as f32;
         let angle_el = pole_pairs * (angle - cfg.encoder_offset_rad);
         let speed_el = pole_pairs * cfg.gear_ratio * self.qd_rad_s;
-        let out: CurrentLoopOutput = self.current.step([ia, ib], angle_el, speed_el, s.bus_v, Dq { d: 0.0, q: iq_ref });
+        let out: CurrentLoopOutput = self.current.step(
+            [ia, ib],
+            angle_el,
+            speed_el,
+            s.bus_v,
+            Dq { d: 0.0, q: iq_ref },
+        );
         if out.voltage_limited {
             faults |= FaultFlags::VOLTAGE_LIMITED;
         }
@@ -329,7 +337,11 @@ pub(crate) mod tests {
     }
 
     fn ok_sample(angle: f32) -> SensorSample {
-        SensorSample { phase_current_a: [0.1, -0.2], motor_angle_rad: angle, bus_v: 48.0 }
+        SensorSample {
+            phase_current_a: [0.1, -0.2],
+            motor_angle_rad: angle,
+            bus_v: 48.0,
+        }
     }
 
     #[test]
@@ -358,21 +370,64 @@ pub(crate) mod tests {
     #[test]
     fn sensor_faults_switch_the_bridge_off_and_back_on() {
         let cases: [(SensorSample, FaultFlags); 6] = [
-            (SensorSample { phase_current_a: [f32::NAN, 0.0], ..ok_sample(1.0) }, FaultFlags::SENSOR_INVALID),
-            (SensorSample { motor_angle_rad: f32::INFINITY, ..ok_sample(1.0) }, FaultFlags::SENSOR_INVALID),
-            (SensorSample { motor_angle_rad: 1e9, ..ok_sample(1.0) }, FaultFlags::SENSOR_INVALID),
-            (SensorSample { bus_v: f32::NEG_INFINITY, ..ok_sample(1.0) }, FaultFlags::SENSOR_INVALID),
-            (SensorSample { phase_current_a: [15.0, 15.0], ..ok_sample(1.0) }, FaultFlags::OVERCURRENT),
-            (SensorSample { bus_v: 90.0, ..ok_sample(1.0) }, FaultFlags::BUS_VOLTAGE),
+            (
+                SensorSample {
+                    phase_current_a: [f32::NAN, 0.0],
+                    ..ok_sample(1.0)
+                },
+                FaultFlags::SENSOR_INVALID,
+            ),
+            (
+                SensorSample {
+                    motor_angle_rad: f32::INFINITY,
+                    ..ok_sample(1.0)
+                },
+                FaultFlags::SENSOR_INVALID,
+            ),
+            (
+                SensorSample {
+                    motor_angle_rad: 1e9,
+                    ..ok_sample(1.0)
+                },
+                FaultFlags::SENSOR_INVALID,
+            ),
+            (
+                SensorSample {
+                    bus_v: f32::NEG_INFINITY,
+                    ..ok_sample(1.0)
+                },
+                FaultFlags::SENSOR_INVALID,
+            ),
+            (
+                SensorSample {
+                    phase_current_a: [15.0, 15.0],
+                    ..ok_sample(1.0)
+                },
+                FaultFlags::OVERCURRENT,
+            ),
+            (
+                SensorSample {
+                    bus_v: 90.0,
+                    ..ok_sample(1.0)
+                },
+                FaultFlags::BUS_VOLTAGE,
+            ),
         ];
         for (bad, flag) in cases {
             let mut d = JointDrive::new(config());
-            d.set_reference(&JointReference { q_rad: 0.3, qd_rad_s: 0.0, qdd_rad_s2: 0.0 });
+            d.set_reference(&JointReference {
+                q_rad: 0.3,
+                qd_rad_s: 0.0,
+                qdd_rad_s2: 0.0,
+            });
             for _ in 0..10 {
                 assert!(d.pwm_tick(&ok_sample(1.0)).bridge_enabled);
             }
             let o = d.pwm_tick(&bad);
-            assert!(!o.bridge_enabled && o.faults.contains(flag) && o.duties == [0.5; 3], "{o:?}");
+            assert!(
+                !o.bridge_enabled && o.faults.contains(flag) && o.duties == [0.5; 3],
+                "{o:?}"
+            );
             let o = d.pwm_tick(&ok_sample(1.0));
             assert!(o.bridge_enabled && o.faults.is_empty(), "{o:?}");
             assert!(d.latched_faults().contains(flag));
@@ -382,16 +437,26 @@ pub(crate) mod tests {
     #[test]
     fn bad_reference_is_held_and_bad_feedforward_zeroed() {
         let mut d = JointDrive::new(config());
-        let good = JointReference { q_rad: 0.3, qd_rad_s: 0.1, qdd_rad_s2: 0.0 };
+        let good = JointReference {
+            q_rad: 0.3,
+            qd_rad_s: 0.1,
+            qdd_rad_s2: 0.0,
+        };
         d.set_reference(&good);
-        d.set_reference(&JointReference { q_rad: f32::NAN, ..good });
+        d.set_reference(&JointReference {
+            q_rad: f32::NAN,
+            ..good
+        });
         d.set_feedforward_current(f32::INFINITY);
         let o = d.pwm_tick(&ok_sample(1.0));
         assert!(o.faults.contains(FaultFlags::REFERENCE_INVALID));
         assert_eq!(*d.reference(), good);
         d.set_feedforward_current(1e6);
         let o = d.pwm_tick(&ok_sample(1.0));
-        assert!(o.faults.contains(FaultFlags::IQ_CLAMPED) && o.iq_ref_a == 10.0, "{o:?}");
+        assert!(
+            o.faults.contains(FaultFlags::IQ_CLAMPED) && o.iq_ref_a == 10.0,
+            "{o:?}"
+        );
         d.set_feedforward_current(0.0);
         let o = d.pwm_tick(&ok_sample(1.0));
         assert!(!o.faults.contains(FaultFlags::REFERENCE_INVALID));

@@ -32,13 +32,19 @@ pub struct Dq {
 /// Clarke transform of balanced phase values (a + b + c = 0) given a and b.
 #[inline]
 pub fn clarke(a: f32, b: f32) -> AlphaBeta {
-    AlphaBeta { alpha: a, beta: FRAC_1_SQRT_3 * (a + 2.0 * b) }
+    AlphaBeta {
+        alpha: a,
+        beta: FRAC_1_SQRT_3 * (a + 2.0 * b),
+    }
 }
 
 /// Clarke transform of three phase values; the zero-sequence part is dropped.
 #[inline]
 pub fn clarke3(a: f32, b: f32, c: f32) -> AlphaBeta {
-    AlphaBeta { alpha: (2.0 * a - b - c) * (1.0 / 3.0), beta: FRAC_1_SQRT_3 * (b - c) }
+    AlphaBeta {
+        alpha: (2.0 * a - b - c) * (1.0 / 3.0),
+        beta: FRAC_1_SQRT_3 * (b - c),
+    }
 }
 
 /// Inverse Clarke transform: three balanced phase values.
@@ -53,13 +59,19 @@ pub fn inverse_clarke(v: AlphaBeta) -> [f32; 3] {
 /// Park transform with the electrical angle's sine and cosine.
 #[inline]
 pub fn park(v: AlphaBeta, sin: f32, cos: f32) -> Dq {
-    Dq { d: v.alpha * cos + v.beta * sin, q: -v.alpha * sin + v.beta * cos }
+    Dq {
+        d: v.alpha * cos + v.beta * sin,
+        q: -v.alpha * sin + v.beta * cos,
+    }
 }
 
 /// Inverse Park transform with the electrical angle's sine and cosine.
 #[inline]
 pub fn inverse_park(v: Dq, sin: f32, cos: f32) -> AlphaBeta {
-    AlphaBeta { alpha: v.d * cos - v.q * sin, beta: v.d * sin + v.q * cos }
+    AlphaBeta {
+        alpha: v.d * cos - v.q * sin,
+        beta: v.d * sin + v.q * cos,
+    }
 }
 
 /// Space-vector modulation of a stationary-frame voltage into three duty cycles in
@@ -80,7 +92,13 @@ pub fn space_vector_duties(v: AlphaBeta, bus_v: f32) -> [f32; 3] {
     let duty = |x: f32| {
         let d = 0.5 + (x + offset) * inv_bus;
         // NaN compares false: it becomes 0.5 (zero voltage).
-        if d >= 0.0 { if d <= 1.0 { d } else { 1.0 } } else if d < 0.0 { 0.0 } else { 0.5 }
+        if d >= 0.0 {
+            if d <= 1.0 { d } else { 1.0 }
+        } else if d < 0.0 {
+            0.0
+        } else {
+            0.5
+        }
     };
     [duty(a), duty(b), duty(c)]
 }
@@ -90,7 +108,11 @@ pub fn space_vector_duties(v: AlphaBeta, bus_v: f32) -> [f32; 3] {
 #[inline]
 pub fn duties_to_phase_voltages(duties: [f32; 3], bus_v: f32) -> [f32; 3] {
     let mean = (duties[0] + duties[1] + duties[2]) * (1.0 / 3.0);
-    [(duties[0] - mean) * bus_v, (duties[1] - mean) * bus_v, (duties[2] - mean) * bus_v]
+    [
+        (duties[0] - mean) * bus_v,
+        (duties[1] - mean) * bus_v,
+        (duties[2] - mean) * bus_v,
+    ]
 }
 
 /// Limit a dq vector to a circle of radius `max` (d keeps priority, as it sets the
@@ -120,7 +142,11 @@ pub struct PiController {
 impl PiController {
     /// A controller with the given gains and an empty integrator.
     pub const fn new(kp: f32, ki: f32) -> Self {
-        Self { kp, ki, integral: 0.0 }
+        Self {
+            kp,
+            ki,
+            integral: 0.0,
+        }
     }
 
     /// The unlimited output for `error` after integrating it over `dt_s`; call
@@ -258,7 +284,12 @@ impl CurrentLoop {
         self.pi_d.back_calculate(vd, v.d);
         self.pi_q.back_calculate(vq, v.q);
         let duties = space_vector_duties(inverse_park(v, sin, cos), bus_v);
-        CurrentLoopOutput { duties, i_dq_a: i_dq, v_dq_v: v, voltage_limited: limited }
+        CurrentLoopOutput {
+            duties,
+            i_dq_a: i_dq,
+            v_dq_v: v,
+            voltage_limited: limited,
+        }
     }
 }
 
@@ -272,7 +303,10 @@ mod tests {
     fn clarke_park_round_trips() {
         let mut rng = ChaCha8Rng::seed_from_u64(1);
         for _ in 0..10_000 {
-            let ab = AlphaBeta { alpha: rng.gen_range(-50.0..50.0), beta: rng.gen_range(-50.0..50.0) };
+            let ab = AlphaBeta {
+                alpha: rng.gen_range(-50.0..50.0),
+                beta: rng.gen_range(-50.0..50.0),
+            };
             let th: f32 = rng.gen_range(-10.0..10.0);
             let (s, c) = math::sin_cos(th);
             let back = inverse_park(park(ab, s, c), s, c);
@@ -308,7 +342,10 @@ mod tests {
             // Inside the linear range: the averaged phase voltages reproduce v.
             let r = rng.gen_range(0.0..1.0f32) * bus * FRAC_1_SQRT_3 * 0.999;
             let th: f32 = rng.gen_range(-4.0..4.0);
-            let v = AlphaBeta { alpha: r * math::cos(th), beta: r * math::sin(th) };
+            let v = AlphaBeta {
+                alpha: r * math::cos(th),
+                beta: r * math::sin(th),
+            };
             let d = space_vector_duties(v, bus);
             assert!(d.iter().all(|x| (0.0..=1.0).contains(x)), "{d:?}");
             let back = clarke3(
@@ -318,12 +355,33 @@ mod tests {
             );
             assert!((back.alpha - v.alpha).abs() < 1e-3 && (back.beta - v.beta).abs() < 1e-3);
             // Far outside (and garbage): still in range.
-            let huge = AlphaBeta { alpha: rng.gen_range(-1e30..1e30), beta: f32::NAN };
+            let huge = AlphaBeta {
+                alpha: rng.gen_range(-1e30..1e30),
+                beta: f32::NAN,
+            };
             let d = space_vector_duties(huge, bus);
             assert!(d.iter().all(|x| (0.0..=1.0).contains(x)), "{d:?}");
         }
-        assert_eq!(space_vector_duties(AlphaBeta { alpha: 1.0, beta: 0.0 }, f32::NAN), [0.5; 3]);
-        assert_eq!(space_vector_duties(AlphaBeta { alpha: 1.0, beta: 0.0 }, -3.0), [0.5; 3]);
+        assert_eq!(
+            space_vector_duties(
+                AlphaBeta {
+                    alpha: 1.0,
+                    beta: 0.0
+                },
+                f32::NAN
+            ),
+            [0.5; 3]
+        );
+        assert_eq!(
+            space_vector_duties(
+                AlphaBeta {
+                    alpha: 1.0,
+                    beta: 0.0
+                },
+                -3.0
+            ),
+            [0.5; 3]
+        );
     }
 
     #[test]
@@ -363,7 +421,11 @@ mod tests {
             assert!(out.voltage_limited);
             assert!((out.v_dq_v.q - v_max).abs() < 1e-4);
         }
-        assert!(cl.pi_q.integral <= v_max + 1e-3, "integrator wound up: {}", cl.pi_q.integral);
+        assert!(
+            cl.pi_q.integral <= v_max + 1e-3,
+            "integrator wound up: {}",
+            cl.pi_q.integral
+        );
         // Request reversed: the output leaves saturation on the first step (no
         // wind-up to unwind).
         let out = cl.step([0.0, 0.0], 0.3, 0.0, bus, Dq { d: 0.0, q: -1.0 });

@@ -26,7 +26,14 @@ pub struct JointState {
 impl JointState {
     /// The six fields in wire order.
     pub fn to_array(&self) -> [f32; 6] {
-        [self.q_ref_rad, self.qd_ref_rad_s, self.qdd_ref_rad_s2, self.q_meas_rad, self.qd_meas_rad_s, self.tau_meas_nm]
+        [
+            self.q_ref_rad,
+            self.qd_ref_rad_s,
+            self.qdd_ref_rad_s2,
+            self.q_meas_rad,
+            self.qd_meas_rad_s,
+            self.tau_meas_nm,
+        ]
     }
 
     /// A state from six fields in wire order.
@@ -138,7 +145,11 @@ pub fn crc16(bytes: &[u8]) -> u16 {
     for &byte in bytes {
         crc ^= (byte as u16) << 8;
         for _ in 0..8 {
-            crc = if crc & 0x8000 != 0 { (crc << 1) ^ 0x1021 } else { crc << 1 };
+            crc = if crc & 0x8000 != 0 {
+                (crc << 1) ^ 0x1021
+            } else {
+                crc << 1
+            };
         }
     }
     crc
@@ -160,7 +171,10 @@ impl Default for FrameReceiver {
 impl FrameReceiver {
     /// An empty receiver.
     pub const fn new() -> Self {
-        Self { buf: [0; JointStateMessage::WIRE_LEN], len: 0 }
+        Self {
+            buf: [0; JointStateMessage::WIRE_LEN],
+            len: 0,
+        }
     }
 
     /// Feed one byte; returns a message when it completes a valid frame. A bad frame
@@ -200,8 +214,14 @@ mod tests {
         };
         let frame = m.encode();
         let d = JointStateMessage::decode(&frame).unwrap();
-        assert_eq!(d.state.to_array().map(f32::to_bits), m.state.to_array().map(f32::to_bits));
-        assert_eq!((d.joint, d.sequence, d.timestamp_us), (2, 65535, 123_456_789));
+        assert_eq!(
+            d.state.to_array().map(f32::to_bits),
+            m.state.to_array().map(f32::to_bits)
+        );
+        assert_eq!(
+            (d.joint, d.sequence, d.timestamp_us),
+            (2, 65535, 123_456_789)
+        );
         let mut bad = frame;
         bad[12] ^= 1;
         assert!(JointStateMessage::decode(&bad).is_none());
@@ -209,7 +229,12 @@ mod tests {
         assert_eq!(crc16(b"123456789"), 0x29B1);
         let mut rx = FrameReceiver::new();
         let mut got = 0;
-        for &b in [0x00, 0xA5, 0x11].iter().chain(bad.iter()).chain(frame.iter()).chain(frame.iter()) {
+        for &b in [0x00, 0xA5, 0x11]
+            .iter()
+            .chain(bad.iter())
+            .chain(frame.iter())
+            .chain(frame.iter())
+        {
             if rx.push(b).is_some() {
                 got += 1;
             }
