@@ -1,1 +1,3 @@
-//! Peripheral drivers behind embedded-hal 1.0 traits.
+//! Peripheral drivers behind embedded-hal 1.0 traits (host-tested with mocks).
+
+pub mod as5047p;
