@@ -21,6 +21,7 @@ pub mod drive;
 pub mod faults;
 pub mod foc;
 pub mod message;
+pub mod predictors;
 
 pub use cascade::{CascadeConfig, JointReference, Pid, PositionVelocityCascade};
 pub use compensator::{
@@ -31,3 +32,4 @@ pub use drive::{DriveConfig, DriveOutput, JointDrive, SensorSample};
 pub use faults::FaultFlags;
 pub use foc::{CurrentLoop, CurrentLoopConfig, MotorParameters};
 pub use message::{FrameReceiver, JointState, JointStateMessage, StateLimits};
+pub use predictors::DecoupledJointModel;
