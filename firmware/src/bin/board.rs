@@ -159,9 +159,7 @@ static COMPENSATOR_DUE: AtomicBool = AtomicBool::new(false);
 #[entry]
 fn main() -> ! {
     let (Some(mut cp), Some(dp)) = (cortex_m::Peripherals::take(), pac::Peripherals::take()) else {
-        loop {
-            cortex_m::asm::udf();
-        }
+        cortex_m::asm::udf();
     };
     cp.DCB.enable_trace();
     cp.DWT.enable_cycle_counter();
@@ -172,19 +170,19 @@ fn main() -> ! {
     // Hold the start position until a trajectory master sends references.
     drive.set_reference(&JointReference::default());
     cortex_m::interrupt::free(|cs| {
-        PWM_CONTEXT.borrow(cs).replace(Some(PwmContext {
-            drive,
-            encoder: As5047p::new(board.encoder_spi),
-            pwm: board.pwm,
-            adc: board.adc,
-        }))
+        if let Ok(mut slot) = PWM_CONTEXT.borrow(cs).try_borrow_mut() {
+            *slot = Some(PwmContext {
+                drive,
+                encoder: As5047p::new(board.encoder_spi),
+                pwm: board.pwm,
+                adc: board.adc,
+            });
+        }
     });
     let Ok(mut compensator) =
         Compensator::<JOINTS, _, _>::new(compensator_config(), model(), NoPredictor)
     else {
-        loop {
-            cortex_m::asm::udf();
-        }
+        cortex_m::asm::udf();
     };
     hw::start(&mut cp.NVIC);
 
@@ -240,7 +238,7 @@ fn main() -> ! {
         let cycles = DWT::cycle_count().wrapping_sub(start);
         comp_max_cycles = comp_max_cycles.max(cycles);
         comp_faults |= out.faults;
-        if ticks % TICK_HZ == 0 {
+        if ticks.is_multiple_of(TICK_HZ) {
             let pwm_cycles = PWM_TICK_MAX_CYCLES.swap(0, Ordering::Relaxed);
             let pwm_faults = PWM_FAULTS.swap(0, Ordering::Relaxed);
             firmware::fw_info!(
@@ -271,7 +269,8 @@ fn ADC1_2() {
     static mut CONTEXT: Option<PwmContext> = None;
     let start = DWT::cycle_count();
     if CONTEXT.is_none() {
-        *CONTEXT = cortex_m::interrupt::free(|cs| PWM_CONTEXT.borrow(cs).take());
+        *CONTEXT =
+            cortex_m::interrupt::free(|cs| PWM_CONTEXT.borrow(cs).try_borrow_mut().ok()?.take());
     }
     let Some(ctx) = CONTEXT.as_mut() else {
         return;
@@ -309,8 +308,13 @@ fn USART3() {
             break;
         };
         cortex_m::interrupt::free(|cs| {
-            if let Some(m) = RX_FRAMES.borrow(cs).borrow_mut().push(byte) {
-                let mut q = RX_MESSAGES.borrow(cs).borrow_mut();
+            let (Ok(mut rx), Ok(mut q)) = (
+                RX_FRAMES.borrow(cs).try_borrow_mut(),
+                RX_MESSAGES.borrow(cs).try_borrow_mut(),
+            ) else {
+                return;
+            };
+            if let Some(m) = rx.push(byte) {
                 if q.is_full() {
                     let _ = q.pop_front();
                 }

@@ -63,9 +63,9 @@ impl Pid {
         self.last_measurement = measurement;
         self.derivative += self.derivative_alpha * (raw_derivative - self.derivative);
         let lim = self.output_limit;
-        let candidate = (self.integral + self.ki * error * dt_s).clamp(-lim, lim);
+        let candidate = super::clamp_abs(self.integral + self.ki * error * dt_s, lim);
         let unlimited = feedforward + self.kp * error + candidate - self.kd * self.derivative;
-        let out = unlimited.clamp(-lim, lim);
+        let out = super::clamp_abs(unlimited, lim);
         // Conditional integration: keep the new integral unless the output is
         // saturated and the error drives it further into saturation.
         let pushing_out = (unlimited > lim && error > 0.0) || (unlimited < -lim && error < 0.0);

@@ -289,15 +289,18 @@ impl<const J: usize, M: TorquePredictor<J>, L: TorquePredictor<J>> Compensator<J
                 self.lstm_blend_ticks = 0;
                 self.ff_blend_ticks = 0;
             }
-            self.states[own_j] = *own;
+            if let Some(slot) = self.states.get_mut(own_j) {
+                *slot = *own;
+            }
             let mut input = PredictorInput {
                 joints: self.states,
                 own_joint: own_j,
                 model_nm: [0.0; J],
             };
             let model_nm = self.model.predict_nm(&input);
-            let model = model_nm[own_j];
-            if !(model.abs() <= cfg.state_limits.max_abs_tau_nm) {
+            // (own_joint < J is checked by `new`; a miss would read as invalid.)
+            let model = model_nm.get(own_j).copied().unwrap_or(f32::NAN);
+            if !super::within(model, cfg.state_limits.max_abs_tau_nm) {
                 faults |= FaultFlags::MODEL_INVALID;
                 self.ff_blend_ticks = 0;
             } else {
@@ -323,18 +326,18 @@ impl<const J: usize, M: TorquePredictor<J>, L: TorquePredictor<J>> Compensator<J
         let max = cfg.max_torque_nm;
         if target.abs() > max {
             faults |= FaultFlags::FF_MAGNITUDE_LIMITED;
-            target = target.clamp(-max, max);
+            target = super::clamp_abs(target, max);
         }
         let step = cfg.max_torque_rate_nm_s * self.dt_s;
         let delta = target - self.torque_nm;
         let torque = if delta.abs() > step {
             faults |= FaultFlags::FF_RATE_LIMITED;
-            self.torque_nm + delta.clamp(-step, step)
+            self.torque_nm + super::clamp_abs(delta, step)
         } else {
             target
         };
         self.torque_nm = if torque.is_finite() {
-            torque.clamp(-max, max)
+            super::clamp_abs(torque, max)
         } else {
             0.0
         };
@@ -342,7 +345,7 @@ impl<const J: usize, M: TorquePredictor<J>, L: TorquePredictor<J>> Compensator<J
         if current_a.abs() > cfg.max_current_a {
             faults |= FaultFlags::FF_MAGNITUDE_LIMITED;
         }
-        current_a = current_a.clamp(-cfg.max_current_a, cfg.max_current_a);
+        current_a = super::clamp_abs(current_a, cfg.max_current_a);
         self.latched |= faults;
         CompensatorOutput {
             torque_nm: self.torque_nm,
@@ -362,7 +365,7 @@ impl<const J: usize, M: TorquePredictor<J>, L: TorquePredictor<J>> Compensator<J
         source: &mut FeedforwardSource,
     ) -> f32 {
         let cfg = self.config;
-        let model = model_nm[cfg.own_joint];
+        let model = model_nm.get(cfg.own_joint).copied().unwrap_or(f32::NAN);
         if self.lstm_off_ticks > 0 {
             self.lstm_off_ticks -= 1;
             if self.lstm_off_ticks == 0 {
@@ -371,10 +374,15 @@ impl<const J: usize, M: TorquePredictor<J>, L: TorquePredictor<J>> Compensator<J
             return model;
         }
         input.model_nm = model_nm;
-        let lstm = self.lstm.predict_nm(input)[cfg.own_joint];
-        let rejected = if !(lstm.abs() <= cfg.state_limits.max_abs_tau_nm) {
+        let lstm = self
+            .lstm
+            .predict_nm(input)
+            .get(cfg.own_joint)
+            .copied()
+            .unwrap_or(f32::NAN);
+        let rejected = if !super::within(lstm, cfg.state_limits.max_abs_tau_nm) {
             FaultFlags::LSTM_INVALID
-        } else if !((lstm - model).abs() <= cfg.max_lstm_correction_nm) {
+        } else if !super::within(lstm - model, cfg.max_lstm_correction_nm) {
             FaultFlags::LSTM_IMPLAUSIBLE
         } else {
             FaultFlags::NONE

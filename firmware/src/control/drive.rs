@@ -35,7 +35,11 @@ impl DriveConfig {
     /// PWM ticks per outer-loop tick (at least 1).
     pub fn outer_decimation(&self) -> u32 {
         let n = libm::roundf(self.current.pwm_hz / self.cascade.rate_hz);
-        if n >= 1.0 && n <= 1.0e6 { n as u32 } else { 1 }
+        if (1.0..=1.0e6).contains(&n) {
+            n as u32
+        } else {
+            1
+        }
     }
 }
 
@@ -265,7 +269,7 @@ impl JointDrive {
         // q-current reference: outer loops + held feedforward, clamped.
         let unclamped = self.iq_cmd_a + self.feedforward_a;
         let max = cfg.max_current_a;
-        let iq_ref = unclamped.clamp(-max, max);
+        let iq_ref = super::clamp_abs(unclamped, max);
         if iq_ref != unclamped {
             faults |= FaultFlags::IQ_CLAMPED;
         }

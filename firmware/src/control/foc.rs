@@ -120,9 +120,9 @@ pub fn duties_to_phase_voltages(duties: [f32; 3], bus_v: f32) -> [f32; 3] {
 #[inline]
 pub fn circle_limit(v: Dq, max: f32) -> (Dq, bool) {
     let max = if max > 0.0 { max } else { 0.0 };
-    let d = v.d.clamp(-max, max);
+    let d = super::clamp_abs(v.d, max);
     let q_max = math::sqrt((max * max - d * d).max(0.0));
-    let q = v.q.clamp(-q_max, q_max);
+    let q = super::clamp_abs(v.q, q_max);
     let limited = d != v.d || q != v.q;
     (Dq { d, q }, limited)
 }

@@ -33,3 +33,25 @@ pub use faults::FaultFlags;
 pub use foc::{CurrentLoop, CurrentLoopConfig, MotorParameters};
 pub use message::{FrameReceiver, JointState, JointStateMessage, StateLimits};
 pub use predictors::DecoupledJointModel;
+
+/// `x` limited to [-limit, limit] without a panic path (`f32::clamp` asserts its
+/// bounds): a negative or NaN limit counts as 0, a NaN `x` gives 0.
+#[inline]
+pub fn clamp_abs(x: f32, limit: f32) -> f32 {
+    let l = if limit >= 0.0 { limit } else { 0.0 };
+    if x > l {
+        l
+    } else if x < -l {
+        -l
+    } else if !x.is_nan() {
+        x
+    } else {
+        0.0
+    }
+}
+
+/// True when |x| <= limit; false for a NaN `x` or limit.
+#[inline]
+pub fn within(x: f32, limit: f32) -> bool {
+    x.abs() <= limit
+}
