@@ -7,6 +7,7 @@
 //! closes the loop: sensors -> `JointDrive::pwm_tick` -> duties -> plant, with the
 //! `Compensator` feeding the torque feedforward at its own rate.
 
+pub mod multi;
 pub mod plant;
 
 use firmware::control::{

@@ -119,9 +119,6 @@ pub struct JointPlant<L: JointLoad> {
 impl<L: JointLoad> JointPlant<L> {
     /// A plant at rest at joint position `q0_rad`.
     pub fn new(config: JointPlantConfig, load: L, q0_rad: f64) -> Self {
-        let sd = |x: f64| {
-            Normal::new(0.0, x.max(0.0)).unwrap_or_else(|_| Normal::new(0.0, 0.0).expect("0 sd"))
-        };
         Self {
             config,
             load,
@@ -130,8 +127,8 @@ impl<L: JointLoad> JointPlant<L> {
             motor_speed_rad_s: 0.0,
             t_s: 0.0,
             rng: ChaCha8Rng::seed_from_u64(config.seed),
-            current_noise: sd(config.current_noise_a),
-            bus_noise: sd(config.bus_noise_v),
+            current_noise: noise(config.current_noise_a),
+            bus_noise: noise(config.bus_noise_v),
             last_motor_torque_nm: 0.0,
         }
     }
@@ -158,9 +155,7 @@ impl<L: JointLoad> JointPlant<L> {
 
     /// True q current, A.
     pub fn iq_a(&self) -> f64 {
-        let th = self.electrical_angle_rad();
-        let (alpha, beta) = clarke(self.i_abc_a);
-        -alpha * th.sin() + beta * th.cos()
+        q_current_a(self.i_abc_a, self.electrical_angle_rad())
     }
 
     /// Motor electromagnetic torque of the last step, N*m (motor side).
@@ -180,25 +175,14 @@ impl<L: JointLoad> JointPlant<L> {
     /// The sensors at the start of a PWM period: current noise and ADC steps, the
     /// encoder quantised to its bits.
     pub fn sense(&mut self) -> SensedSample {
-        let c = self.config;
-        let adc = |i: f64, rng: &mut ChaCha8Rng| {
-            let noisy = i + self.current_noise.sample(rng);
-            if c.current_lsb_a > 0.0 {
-                (noisy / c.current_lsb_a).round() * c.current_lsb_a
-            } else {
-                noisy
-            }
-        };
-        let ia = adc(self.i_abc_a[0], &mut self.rng);
-        let ib = adc(self.i_abc_a[1], &mut self.rng);
-        let counts = (1u64 << c.encoder_bits) as f64;
-        let wrapped = self.motor_angle_rad.rem_euclid(TAU);
-        let code = (wrapped / TAU * counts).floor().rem_euclid(counts);
-        SensedSample {
-            phase_current_a: [ia, ib],
-            motor_angle_rad: code * TAU / counts,
-            bus_v: c.bus_v + self.bus_noise.sample(&mut self.rng),
-        }
+        sense_joint(
+            &self.config,
+            self.i_abc_a,
+            self.motor_angle_rad,
+            &mut self.rng,
+            &self.current_noise,
+            &self.bus_noise,
+        )
     }
 
     /// Apply three duties for one PWM period (averaged switching) and integrate.
@@ -217,25 +201,10 @@ impl<L: JointLoad> JointPlant<L> {
         let v = d.map(|x| (x - mean) * c.bus_v);
         let j_eff = self.effective_inertia_kg_m2();
         let p = c.pole_pairs as f64;
+        let lambda = c.flux_linkage_wb;
         for _ in 0..n {
             let th = self.electrical_angle_rad();
-            let w_e = p * self.motor_speed_rad_s;
-            let lambda = c.flux_linkage_wb;
-            let bemf = [
-                -lambda * w_e * th.sin(),
-                -lambda * w_e * (th - 2.0 * PI / 3.0).sin(),
-                -lambda * w_e * (th + 2.0 * PI / 3.0).sin(),
-            ];
-            for k in 0..3 {
-                let di = (v[k] - c.phase_resistance_ohm * self.i_abc_a[k] - bemf[k])
-                    / c.phase_inductance_h;
-                self.i_abc_a[k] += di * dt;
-            }
-            // Star point: the currents sum to zero.
-            let s = (self.i_abc_a[0] + self.i_abc_a[1] + self.i_abc_a[2]) / 3.0;
-            for i in &mut self.i_abc_a {
-                *i -= s;
-            }
+            motor_electrical_step(&c, &mut self.i_abc_a, v, th, self.motor_speed_rad_s, dt);
             let iq = self.iq_a();
             let t_motor = 1.5 * p * lambda * iq;
             self.last_motor_torque_nm = t_motor;
@@ -249,6 +218,89 @@ impl<L: JointLoad> JointPlant<L> {
             self.t_s += dt;
         }
     }
+}
+
+/// Phase voltages (star point) that three duties give on average over a PWM period.
+pub fn phase_voltages(c: &JointPlantConfig, duties: [f64; 3]) -> [f64; 3] {
+    let d = duties.map(|x| {
+        if x.is_finite() {
+            x.clamp(0.0, 1.0)
+        } else {
+            0.5
+        }
+    });
+    let mean = (d[0] + d[1] + d[2]) / 3.0;
+    d.map(|x| (x - mean) * c.bus_v)
+}
+
+/// One explicit-Euler step of the three phase currents: L di/dt = v - R i - e, with
+/// sinusoidal back-EMF and a floating star point (currents sum to zero).
+pub fn motor_electrical_step(
+    c: &JointPlantConfig,
+    i_abc_a: &mut [f64; 3],
+    v: [f64; 3],
+    electrical_angle_rad: f64,
+    motor_speed_rad_s: f64,
+    dt_s: f64,
+) {
+    let th = electrical_angle_rad;
+    let w_e = c.pole_pairs as f64 * motor_speed_rad_s;
+    let lambda = c.flux_linkage_wb;
+    let bemf = [
+        -lambda * w_e * th.sin(),
+        -lambda * w_e * (th - 2.0 * PI / 3.0).sin(),
+        -lambda * w_e * (th + 2.0 * PI / 3.0).sin(),
+    ];
+    for k in 0..3 {
+        let di = (v[k] - c.phase_resistance_ohm * i_abc_a[k] - bemf[k]) / c.phase_inductance_h;
+        i_abc_a[k] += di * dt_s;
+    }
+    let s = (i_abc_a[0] + i_abc_a[1] + i_abc_a[2]) / 3.0;
+    for i in i_abc_a.iter_mut() {
+        *i -= s;
+    }
+}
+
+/// q current of three phase currents at an electrical angle.
+pub fn q_current_a(i_abc_a: [f64; 3], electrical_angle_rad: f64) -> f64 {
+    let (alpha, beta) = clarke(i_abc_a);
+    -alpha * electrical_angle_rad.sin() + beta * electrical_angle_rad.cos()
+}
+
+/// Sensor model shared by the plants: noisy, quantised phase currents a and b, the
+/// encoder quantised to its bits, a noisy bus voltage.
+pub fn sense_joint(
+    c: &JointPlantConfig,
+    i_abc_a: [f64; 3],
+    motor_angle_rad: f64,
+    rng: &mut ChaCha8Rng,
+    current_noise: &Normal<f64>,
+    bus_noise: &Normal<f64>,
+) -> SensedSample {
+    let mut adc = |i: f64| {
+        let noisy = i + current_noise.sample(rng);
+        if c.current_lsb_a > 0.0 {
+            (noisy / c.current_lsb_a).round() * c.current_lsb_a
+        } else {
+            noisy
+        }
+    };
+    let ia = adc(i_abc_a[0]);
+    let ib = adc(i_abc_a[1]);
+    let counts = (1u64 << c.encoder_bits) as f64;
+    let wrapped = motor_angle_rad.rem_euclid(TAU);
+    let code = (wrapped / TAU * counts).floor().rem_euclid(counts);
+    SensedSample {
+        phase_current_a: [ia, ib],
+        motor_angle_rad: code * TAU / counts,
+        bus_v: c.bus_v + bus_noise.sample(rng),
+    }
+}
+
+/// A zero-mean normal distribution with standard deviation `sd` (0 when negative).
+pub fn noise(sd: f64) -> Normal<f64> {
+    Normal::new(0.0, if sd > 0.0 && sd.is_finite() { sd } else { 0.0 })
+        .unwrap_or(Normal::new(0.0, 0.0).expect("zero sd is valid"))
 }
 
 fn clarke(i: [f64; 3]) -> (f64, f64) {
