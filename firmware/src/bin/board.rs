@@ -207,9 +207,9 @@ fn main() -> ! {
         let now_us = ticks.wrapping_mul(1_000_000 / TICK_HZ);
         // Drain the bus (bounded by the queue's capacity).
         for _ in 0..8 {
-            let Some(m) =
-                cortex_m::interrupt::free(|cs| RX_MESSAGES.borrow(cs).borrow_mut().pop_front())
-            else {
+            let Some(m) = cortex_m::interrupt::free(|cs| {
+                RX_MESSAGES.borrow(cs).try_borrow_mut().ok()?.pop_front()
+            }) else {
                 break;
             };
             compensator.receive(&m);
