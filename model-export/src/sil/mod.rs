@@ -300,6 +300,47 @@ mod tests {
     use super::*;
 
     #[test]
+    fn current_loop_step_response_on_the_plant() {
+        // Rotor held by a huge inertia; the firmware's FOC current loop alone, one PWM
+        // period of delay: a 5 A q step settles in about 1 ms without ringing.
+        let setup = SingleJointSetup::wrist_joint(1000.0, 1);
+        let mut pc = setup.plant;
+        pc.current_noise_a = 0.0;
+        pc.current_lsb_a = 0.0;
+        let load = SingleJointLoad {
+            inertia_kg_m2: 1e9,
+            ..setup.load
+        };
+        let mut plant = JointPlant::new(pc, load, 0.1);
+        let mut cl = firmware::control::CurrentLoop::new(setup.drive.current);
+        let mut duties = [0.5; 3];
+        let mut peak: f64 = 0.0;
+        let mut at_1ms = 0.0;
+        for k in 0..100 {
+            let s = plant.sense();
+            let angle_el = 7.0 * (s.motor_angle_rad - pc.encoder_offset_rad);
+            let out = cl.step(
+                [s.phase_current_a[0] as f32, s.phase_current_a[1] as f32],
+                angle_el as f32,
+                0.0,
+                s.bus_v as f32,
+                firmware::control::foc::Dq { d: 0.0, q: 5.0 },
+            );
+            plant.step_pwm_period(duties);
+            duties = out.duties.map(f64::from);
+            peak = peak.max(plant.iq_a());
+            if k == 19 {
+                at_1ms = plant.iq_a();
+            }
+        }
+        let end = plant.iq_a();
+        println!("iq at 1 ms {at_1ms:.3} A, at 5 ms {end:.3} A, peak {peak:.3} A");
+        assert!((at_1ms - 5.0).abs() < 0.25, "{at_1ms}");
+        assert!((end - 5.0).abs() < 0.02, "{end}");
+        assert!(peak < 5.5, "overshoot: {peak}");
+    }
+
+    #[test]
     fn loop_tracks_and_perfect_feedforward_reduces_the_error() {
         let setup = SingleJointSetup::wrist_joint(1000.0, 7);
         let none = run_single_joint(&setup, FeedforwardMode::None).unwrap();
