@@ -107,6 +107,8 @@ fn compensator_config() -> CompensatorConfig {
             max_abs_tau_nm: 300.0,
         },
         watchdog_ticks: 3,
+        // The UART stand-in has no distributed clock: the sender-timestamp check is
+        // off (the tick-count watchdog still applies); with EtherCAT DC set ~2 ticks.
         max_message_age_us: u32::MAX / 2,
         max_torque_nm: 120.0,
         max_torque_rate_nm_s: 2_000.0,
