@@ -156,7 +156,7 @@ fn base_timing(base: &str) -> Option<Timing> {
         // Table 3-1: barriers 1+B (B not modelled), hints 1, breakpoint/SVC/UDF
         // (they end the program or trap; never inside a measured tick).
         "dmb" | "dsb" | "isb" | "nop" | "yield" | "wfi" | "wfe" | "sev" | "bkpt" | "svc"
-        | "udf" | "clrex" => Fixed(1),
+        | "udf" | "trap" | "clrex" => Fixed(1),
         // Table 3-1: moves, arithmetic, logic, shifts, compares, saturation, bit
         // field, extend, reverse, count leading zeros, parallel add/subtract,
         // packing, SEL, USAD8, saturating arithmetic: 1 (1+P when writing the PC).
