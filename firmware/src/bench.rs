@@ -106,7 +106,11 @@ impl Workload for LstmGateActivations64 {
         for (k, p) in pre.iter_mut().enumerate() {
             *p = 12.0 * golden::unit(golden::hash(k as u32)) - 6.0;
         }
-        LstmGateActivations64 { pre, phase: 0.0, out: 0.0 }
+        LstmGateActivations64 {
+            pre,
+            phase: 0.0,
+            out: 0.0,
+        }
     }
 
     #[inline(never)]
@@ -190,7 +194,12 @@ impl Default for TickStats {
 impl TickStats {
     /// An empty window.
     pub const fn new() -> Self {
-        TickStats { min_cycles: u32::MAX, max_cycles: 0, sum_cycles: 0, ticks: 0 }
+        TickStats {
+            min_cycles: u32::MAX,
+            max_cycles: 0,
+            sum_cycles: 0,
+            ticks: 0,
+        }
     }
 
     /// Adds one tick's cycles.
@@ -233,7 +242,11 @@ mod tests {
                 prev = w.output();
             }
             assert!(prev.is_finite());
-            assert!(!self.names[..self.n].contains(&W::NAME), "duplicate {}", W::NAME);
+            assert!(
+                !self.names[..self.n].contains(&W::NAME),
+                "duplicate {}",
+                W::NAME
+            );
             self.names[self.n] = W::NAME;
             self.n += 1;
         }
@@ -241,7 +254,10 @@ mod tests {
 
     #[test]
     fn registered_workloads_run_and_have_unique_names() {
-        let mut v = RunAll { names: [""; 8], n: 0 };
+        let mut v = RunAll {
+            names: [""; 8],
+            n: 0,
+        };
         visit_all(&mut v);
         assert_eq!(v.n, workload_count());
         assert!(v.n >= 3);
@@ -261,7 +277,10 @@ mod tests {
         for c in [10, 30, 20] {
             s.record(c);
         }
-        assert_eq!((s.min_cycles, s.max_cycles, s.mean_cycles(), s.ticks), (10, 30, 20, 3));
+        assert_eq!(
+            (s.min_cycles, s.max_cycles, s.mean_cycles(), s.ticks),
+            (10, 30, 20, 3)
+        );
         let old = s.take();
         assert_eq!(old.ticks, 3);
         assert_eq!(s, TickStats::new());

@@ -63,9 +63,14 @@ impl Budgets {
     pub fn load(path: &Path) -> Result<Budgets> {
         let text =
             std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-        let b: Budgets = toml::from_str(&text).with_context(|| format!("parsing {}", path.display()))?;
-        if b.mcu.clock_hz == 0 || b.mcu.control_rate_hz == 0 || b.mcu.control_rates_hz.contains(&0) {
-            bail!("{}: clock and control rates must be positive", path.display());
+        let b: Budgets =
+            toml::from_str(&text).with_context(|| format!("parsing {}", path.display()))?;
+        if b.mcu.clock_hz == 0 || b.mcu.control_rate_hz == 0 || b.mcu.control_rates_hz.contains(&0)
+        {
+            bail!(
+                "{}: clock and control rates must be positive",
+                path.display()
+            );
         }
         Ok(b)
     }
@@ -157,7 +162,11 @@ pub struct Options {
 impl Default for Options {
     fn default() -> Self {
         Options {
-            binaries: vec![FirmwareBin::Board, FirmwareBin::Qemu, FirmwareBin::QemuBench],
+            binaries: vec![
+                FirmwareBin::Board,
+                FirmwareBin::Qemu,
+                FirmwareBin::QemuBench,
+            ],
             opt_level: None,
             model: CycleModel::default(),
             top_symbols: 10,
@@ -172,7 +181,11 @@ pub fn measure(opts: &Options) -> Result<Measurement> {
     for &bin in &opts.binaries {
         let elf = target::build_with(bin, level)?;
         let size = elf::size_report(&elf, opts.top_symbols)?;
-        binaries.push(BinarySize { name: bin.name().to_string(), elf, size });
+        binaries.push(BinarySize {
+            name: bin.name().to_string(),
+            elf,
+            size,
+        });
     }
     let bench_elf = target::build_with(FirmwareBin::QemuBench, level)?;
     let (workloads, traced_whole_text) = estimate_workloads(&bench_elf, &opts.model)?;
@@ -202,13 +215,19 @@ pub fn estimate_workloads(elf: &Path, model: &CycleModel) -> Result<(Vec<Workloa
     };
     let (pcs, out) = trace::run_trace(elf, &filter)?;
     let traced_bench = trace::parse_bench(&out)?;
-    if traced_bench.workloads.iter().map(|w| w.tick_addr).ne(entries.iter().copied()) {
+    if traced_bench
+        .workloads
+        .iter()
+        .map(|w| w.tick_addr)
+        .ne(entries.iter().copied())
+    {
         bail!("the traced run reported other tick addresses than the icount run");
     }
     let ticks = trace::split_ticks(&pcs, &code, &fns, &entries, model)?;
     let mut out = Vec::new();
     for w in &bench.workloads {
-        let mine: Vec<&trace::TickTrace> = ticks.iter().filter(|t| t.entry == w.tick_addr).collect();
+        let mine: Vec<&trace::TickTrace> =
+            ticks.iter().filter(|t| t.entry == w.tick_addr).collect();
         if mine.len() != bench.ticks as usize {
             bail!(
                 "workload `{}`: traced {} ticks, the bench binary ran {}",
@@ -237,7 +256,8 @@ pub fn estimate_workloads(elf: &Path, model: &CycleModel) -> Result<(Vec<Workloa
         functions.sort_by(|a, b| b.cycles.total_cmp(&a.cycles));
         out.push(WorkloadCost {
             name: w.name.clone(),
-            function: elf::function_at(&fns, w.tick_addr).map_or_else(String::new, |f| f.name.clone()),
+            function: elf::function_at(&fns, w.tick_addr)
+                .map_or_else(String::new, |f| f.name.clone()),
             ticks: mine.len(),
             macs: w.macs,
             instructions_mean: mine.iter().map(|t| t.total.instructions).sum::<u64>() as f64 / n,
@@ -322,7 +342,10 @@ pub fn check(m: &Measurement, b: &Budgets) -> Vec<Violation> {
         let limit = b.cycle_limit(&w.name);
         if w.cycles_max > limit {
             v.push(Violation {
-                what: format!("workload {} ({}): estimated cycles per tick", w.name, w.function),
+                what: format!(
+                    "workload {} ({}): estimated cycles per tick",
+                    w.name, w.function
+                ),
                 measured: w.cycles_max,
                 limit,
             });
@@ -334,11 +357,19 @@ pub fn check(m: &Measurement, b: &Budgets) -> Vec<Violation> {
 /// Applies the budgets.
 pub fn report(m: Measurement, b: Budgets) -> Report {
     let violations = check(&m, &b);
-    Report { budgets: b, measurement: m, violations }
+    Report {
+        budgets: b,
+        measurement: m,
+        violations,
+    }
 }
 
 fn kib(bytes: u64) -> String {
-    if bytes < 1024 { format!("{bytes} B") } else { format!("{bytes} B ({:.1} KiB)", bytes as f64 / 1024.0) }
+    if bytes < 1024 {
+        format!("{bytes} B")
+    } else {
+        format!("{bytes} B ({:.1} KiB)", bytes as f64 / 1024.0)
+    }
 }
 
 impl Report {
@@ -347,9 +378,12 @@ impl Report {
         let m = &self.measurement;
         let b = &self.budgets;
         let mut s = String::new();
-        let profile = m.opt_level.as_deref().map_or("checked-in release profile".to_string(), |l| {
-            format!("release profile with opt-level = {l}")
-        });
+        let profile = m
+            .opt_level
+            .as_deref()
+            .map_or("checked-in release profile".to_string(), |l| {
+                format!("release profile with opt-level = {l}")
+            });
         let _ = writeln!(s, "## Size ({}, {profile})\n", b.mcu.name);
         let _ = writeln!(
             s,
@@ -358,11 +392,16 @@ impl Report {
         let _ = writeln!(s, "|---|---:|---:|---:|---:|---:|---:|---:|---:|");
         for bin in &m.binaries {
             let lim = b.binary.get(&bin.name);
-            let (fl, rl, st) =
-                lim.map_or((0, 0, 0), |l| (l.flash_bytes, l.ram_bytes, l.stack_reserve_bytes));
+            let (fl, rl, st) = lim.map_or((0, 0, 0), |l| {
+                (l.flash_bytes, l.ram_bytes, l.stack_reserve_bytes)
+            });
             let ram = bin.size.static_ram_bytes + st;
             let pct = |a: u64, l: u64| {
-                if l == 0 { "no budget".to_string() } else { format!("{:.1} %", 100.0 * a as f64 / l as f64) }
+                if l == 0 {
+                    "no budget".to_string()
+                } else {
+                    format!("{:.1} %", 100.0 * a as f64 / l as f64)
+                }
             };
             let _ = writeln!(
                 s,
@@ -412,16 +451,28 @@ impl Report {
             "| workload | ticks | instr/tick (trace) | instr/tick (icount) | cycles min | cycles mean | cycles max | cycles/MAC | {} | limit | status |",
             rates.join(" | ")
         );
-        let _ = writeln!(s, "|---|---:|---:|---:|---:|---:|---:|---:|{}---:|---|", "---:|".repeat(rates.len()));
+        let _ = writeln!(
+            s,
+            "|---|---:|---:|---:|---:|---:|---:|---:|{}---:|---|",
+            "---:|".repeat(rates.len())
+        );
         for w in &m.workloads {
             let limit = b.cycle_limit(&w.name);
-            let per_mac =
-                if w.macs == 0 { "-".to_string() } else { format!("{:.2}", w.cycles_mean / f64::from(w.macs)) };
+            let per_mac = if w.macs == 0 {
+                "-".to_string()
+            } else {
+                format!("{:.2}", w.cycles_mean / f64::from(w.macs))
+            };
             let shares: Vec<String> = b
                 .mcu
                 .control_rates_hz
                 .iter()
-                .map(|&r| format!("{:.3} %", 100.0 * w.cycles_max as f64 * r as f64 / b.mcu.clock_hz as f64))
+                .map(|&r| {
+                    format!(
+                        "{:.3} %",
+                        100.0 * w.cycles_max as f64 * r as f64 / b.mcu.clock_hz as f64
+                    )
+                })
                 .collect();
             let status = if w.cycles_max > limit {
                 format!("OVER by {}", w.cycles_max - limit)
@@ -451,14 +502,21 @@ impl Report {
             b.mcu.clock_hz / 1_000_000
         );
         if m.traced_whole_text {
-            let _ = writeln!(s, "\nAn indirect branch was reachable: the whole `.text` was traced.");
+            let _ = writeln!(
+                s,
+                "\nAn indirect branch was reachable: the whole `.text` was traced."
+            );
         }
         for w in &m.workloads {
             let _ = writeln!(s, "\n### {}: per function (self, mean per tick)\n", w.name);
             let _ = writeln!(s, "| function | instructions | est. cycles |");
             let _ = writeln!(s, "|---|---:|---:|");
             for f in &w.functions {
-                let _ = writeln!(s, "| `{}` | {:.1} | {:.1} |", f.name, f.instructions, f.cycles);
+                let _ = writeln!(
+                    s,
+                    "| `{}` | {:.1} | {:.1} |",
+                    f.name, f.instructions, f.cycles
+                );
             }
         }
         let _ = writeln!(s, "\n## Budget check\n");
@@ -478,7 +536,11 @@ impl Report {
 }
 
 fn rate_name(hz: u64) -> String {
-    if hz >= 1000 && hz % 1000 == 0 { format!("{} kHz", hz / 1000) } else { format!("{hz} Hz") }
+    if hz >= 1000 && hz.is_multiple_of(1000) {
+        format!("{} kHz", hz / 1000)
+    } else {
+        format!("{hz} Hz")
+    }
 }
 
 #[cfg(test)]
@@ -526,7 +588,10 @@ mod tests {
         assert_eq!(b.mcu.clock_hz, 170_000_000);
         assert_eq!(b.binary["board"].flash_bytes, 512 * 1024);
         assert_eq!(b.binary["board"].ram_bytes, 128 * 1024);
-        assert_eq!(b.cycle_limit("no-such-workload"), 170_000_000 / b.mcu.control_rate_hz);
+        assert_eq!(
+            b.cycle_limit("no-such-workload"),
+            170_000_000 / b.mcu.control_rate_hz
+        );
     }
 
     #[test]
@@ -535,13 +600,23 @@ mod tests {
         let board = b.binary["board"];
         let dot = b.cycle_limit("dot64");
         assert!(check(&measurement(1000, 1000, dot), &b).is_empty());
-        let v = check(&measurement(board.flash_bytes + 1, board.ram_bytes, dot + 7), &b);
+        let v = check(
+            &measurement(board.flash_bytes + 1, board.ram_bytes, dot + 7),
+            &b,
+        );
         assert_eq!(v.len(), 3, "{v:?}");
-        assert!(v[0].to_string().starts_with("binary board: flash bytes"), "{}", v[0]);
+        assert!(
+            v[0].to_string().starts_with("binary board: flash bytes"),
+            "{}",
+            v[0]
+        );
         assert!(v[1].what.contains("RAM"));
         assert_eq!(v[1].measured, board.ram_bytes + board.stack_reserve_bytes);
         let s = v[2].to_string();
-        assert!(s.contains("dot64") && s.contains("Dot64") && s.contains("overrun 7"), "{s}");
+        assert!(
+            s.contains("dot64") && s.contains("Dot64") && s.contains("overrun 7"),
+            "{s}"
+        );
     }
 
     #[test]

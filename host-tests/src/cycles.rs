@@ -52,7 +52,10 @@ impl Instr {
 
     /// Direct branch target (`b`, `bl`, `cbz`, ... print it as `0x1234 <sym>`).
     pub fn direct_target(&self) -> Option<u32> {
-        let word = self.operands.split_whitespace().find(|w| w.starts_with("0x"))?;
+        let word = self
+            .operands
+            .split_whitespace()
+            .find(|w| w.starts_with("0x"))?;
         u32::from_str_radix(word.trim_start_matches("0x").trim_end_matches(','), 16).ok()
     }
 }
@@ -149,8 +152,8 @@ fn base_timing(base: &str) -> Option<Timing> {
         | "smulbt" | "smultb" | "smultt" | "smulwb" | "smulwt" | "smlabb" | "smlabt" | "smlatb"
         | "smlatt" | "smlawb" | "smlawt" | "smlalbb" | "smlalbt" | "smlaltb" | "smlaltt"
         | "smuad" | "smuadx" | "smusd" | "smusdx" | "smlad" | "smladx" | "smlsd" | "smlsdx"
-        | "smlald" | "smlaldx" | "smlsld" | "smlsldx" | "smmul" | "smmulr" | "smmla"
-        | "smmlar" | "smmls" | "smmlsr" => Fixed(1),
+        | "smlald" | "smlaldx" | "smlsld" | "smlsldx" | "smmul" | "smmulr" | "smmla" | "smmlar"
+        | "smmls" | "smmlsr" => Fixed(1),
         // Table 3-1: status register access and interrupt masks: 1 or 2 (worst case).
         "mrs" | "msr" | "cpsid" | "cpsie" => Fixed(2),
         // Table 3-1: barriers 1+B (B not modelled), hints 1, breakpoint/SVC/UDF
@@ -161,17 +164,16 @@ fn base_timing(base: &str) -> Option<Timing> {
         // field, extend, reverse, count leading zeros, parallel add/subtract,
         // packing, SEL, USAD8, saturating arithmetic: 1 (1+P when writing the PC).
         "mov" | "movw" | "movt" | "mvn" | "add" | "addw" | "adc" | "adr" | "sub" | "subw"
-        | "sbc" | "rsb" | "and" | "orr" | "orn" | "eor" | "bic" | "lsl" | "lsr" | "asr"
-        | "ror" | "rrx" | "cmp" | "cmn" | "tst" | "teq" | "ssat" | "usat" | "ssat16"
-        | "usat16" | "bfi" | "bfc" | "ubfx" | "sbfx" | "sxtb" | "sxth" | "uxtb" | "uxth"
-        | "sxtb16" | "uxtb16" | "sxtab" | "sxtah" | "uxtab" | "uxtah" | "sxtab16" | "uxtab16"
-        | "rev" | "rev16" | "revsh" | "rbit" | "clz" | "sel" | "pkhbt" | "pkhtb" | "usad8"
-        | "usada8" | "qadd" | "qsub" | "qdadd" | "qdsub" | "sadd16" | "sadd8" | "ssub16"
-        | "ssub8" | "sasx" | "ssax" | "uadd16" | "uadd8" | "usub16" | "usub8" | "uasx"
-        | "usax" | "qadd16" | "qadd8" | "qsub16" | "qsub8" | "qasx" | "qsax" | "uqadd16"
-        | "uqadd8" | "uqsub16" | "uqsub8" | "uqasx" | "uqsax" | "shadd16" | "shadd8"
-        | "shsub16" | "shsub8" | "shasx" | "shsax" | "uhadd16" | "uhadd8" | "uhsub16"
-        | "uhsub8" | "uhasx" | "uhsax" | "neg" => Alu,
+        | "sbc" | "rsb" | "and" | "orr" | "orn" | "eor" | "bic" | "lsl" | "lsr" | "asr" | "ror"
+        | "rrx" | "cmp" | "cmn" | "tst" | "teq" | "ssat" | "usat" | "ssat16" | "usat16" | "bfi"
+        | "bfc" | "ubfx" | "sbfx" | "sxtb" | "sxth" | "uxtb" | "uxth" | "sxtb16" | "uxtb16"
+        | "sxtab" | "sxtah" | "uxtab" | "uxtah" | "sxtab16" | "uxtab16" | "rev" | "rev16"
+        | "revsh" | "rbit" | "clz" | "sel" | "pkhbt" | "pkhtb" | "usad8" | "usada8" | "qadd"
+        | "qsub" | "qdadd" | "qdsub" | "sadd16" | "sadd8" | "ssub16" | "ssub8" | "sasx"
+        | "ssax" | "uadd16" | "uadd8" | "usub16" | "usub8" | "uasx" | "usax" | "qadd16"
+        | "qadd8" | "qsub16" | "qsub8" | "qasx" | "qsax" | "uqadd16" | "uqadd8" | "uqsub16"
+        | "uqsub8" | "uqasx" | "uqsax" | "shadd16" | "shadd8" | "shsub16" | "shsub8" | "shasx"
+        | "shsax" | "uhadd16" | "uhadd8" | "uhsub16" | "uhsub8" | "uhasx" | "uhsax" | "neg" => Alu,
         // Table 7-1: VADD, VSUB, VMUL, VNMUL, VABS, VNEG, VCMP(E), VCVT (all forms),
         // VMOV (immediate, register, core<->single), VMRS, VMSR: 1.
         "vadd" | "vsub" | "vmul" | "vnmul" | "vabs" | "vneg" | "vcmp" | "vcmpe" | "vcvt"
@@ -241,7 +243,11 @@ fn register_list(operands: &str) -> Option<(u32, bool)> {
     let close = operands[open..].find('}')? + open;
     let mut words = 0;
     let mut pc = false;
-    for item in operands[open + 1..close].split(',').map(str::trim).filter(|s| !s.is_empty()) {
+    for item in operands[open + 1..close]
+        .split(',')
+        .map(str::trim)
+        .filter(|s| !s.is_empty())
+    {
         let (lo, hi) = item.split_once('-').unwrap_or((item, item));
         let num = |r: &str| r.trim()[1..].parse::<u32>().ok();
         let width = if lo.starts_with('d') { 2 } else { 1 };
@@ -298,11 +304,27 @@ pub fn classify(instr: &Instr) -> Result<Class> {
             let from_stack = base == "pop" || ops.trim_start().starts_with("sp!");
             let is_load = base == "pop" || base.starts_with("ldm");
             let pc = list_pc && is_load;
-            (pc, if pc && from_stack { Flow::Return } else { Flow::Plain }, timing)
+            (
+                pc,
+                if pc && from_stack {
+                    Flow::Return
+                } else {
+                    Flow::Plain
+                },
+                timing,
+            )
         }
         Timing::Load => {
             let from_stack = ops.contains("[sp]") || ops.contains("[sp,");
-            (dest_pc, if dest_pc && from_stack { Flow::Return } else { Flow::Plain }, timing)
+            (
+                dest_pc,
+                if dest_pc && from_stack {
+                    Flow::Return
+                } else {
+                    Flow::Plain
+                },
+                timing,
+            )
         }
         Timing::Alu => (dest_pc, Flow::Plain, timing),
         Timing::Fixed(1) if base == "vmov" => {
@@ -315,7 +337,11 @@ pub fn classify(instr: &Instr) -> Result<Class> {
                         || (o.starts_with('r') && o[1..].parse::<u8>().is_ok())
                 })
                 .count();
-            (false, Flow::Plain, Timing::Fixed(if cores >= 2 { 2 } else { 1 }))
+            (
+                false,
+                Flow::Plain,
+                Timing::Fixed(if cores >= 2 { 2 } else { 1 }),
+            )
         }
         Timing::FpMultiple => (false, Flow::Plain, timing),
         Timing::Fixed(_) => (false, Flow::Plain, timing),
@@ -323,7 +349,13 @@ pub fn classify(instr: &Instr) -> Result<Class> {
     if !matches!(timing, Timing::Multiple | Timing::FpMultiple) {
         words = 0;
     }
-    Ok(Class { timing, writes_pc, conditional, flow, words })
+    Ok(Class {
+        timing,
+        writes_pc,
+        conditional,
+        flow,
+        words,
+    })
 }
 
 impl CycleModel {
@@ -354,7 +386,12 @@ mod tests {
     use super::*;
 
     fn ins(addr: u32, size: u32, m: &str, ops: &str) -> Instr {
-        Instr { addr, size, mnemonic: m.into(), operands: ops.into() }
+        Instr {
+            addr,
+            size,
+            mnemonic: m.into(),
+            operands: ops.into(),
+        }
     }
 
     fn cyc(m: &str, ops: &str, taken: bool) -> u32 {
@@ -426,12 +463,18 @@ mod tests {
         assert_eq!(f("vmls.f32", "s0, s1, s2"), Flow::Plain);
         assert_eq!(f("bls", "0x10 <x>"), Flow::Plain);
         assert!(classify(&ins(0, 2, "bls", "0x10 <x>")).unwrap().conditional);
-        assert!(!classify(&ins(0, 2, "vmls.f32", "s0, s1, s2")).unwrap().conditional);
+        assert!(
+            !classify(&ins(0, 2, "vmls.f32", "s0, s1, s2"))
+                .unwrap()
+                .conditional
+        );
     }
 
     #[test]
     fn unknown_mnemonic_is_an_error_naming_it() {
-        let e = classify(&ins(0x40, 4, "vfoo.f32", "s0, s1")).unwrap_err().to_string();
+        let e = classify(&ins(0x40, 4, "vfoo.f32", "s0, s1"))
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("vfoo.f32") && e.contains("0x40"), "{e}");
     }
 

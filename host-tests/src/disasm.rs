@@ -62,13 +62,16 @@ pub fn disassemble(elf: &Path) -> Result<Code> {
 pub fn parse_objdump(text: &str) -> Result<Code> {
     let mut code = Code::default();
     for (n, line) in text.lines().enumerate() {
-        let Some((addr, rest)) = line.split_once(':') else { continue };
+        let Some((addr, rest)) = line.split_once(':') else {
+            continue;
+        };
         let addr = addr.trim();
-        if addr.is_empty() || !addr.bytes().all(|b| b.is_ascii_hexdigit()) || line.ends_with(':')
-        {
+        if addr.is_empty() || !addr.bytes().all(|b| b.is_ascii_hexdigit()) || line.ends_with(':') {
             continue;
         }
-        let Ok(addr) = u32::from_str_radix(addr, 16) else { continue };
+        let Ok(addr) = u32::from_str_radix(addr, 16) else {
+            continue;
+        };
         let mut fields = rest.split('\t').map(str::trim).filter(|f| !f.is_empty());
         let bytes = fields.next().unwrap_or_default();
         let mnemonic = fields.next().unwrap_or_default();
@@ -77,11 +80,27 @@ pub fn parse_objdump(text: &str) -> Result<Code> {
         }
         let size = bytes.split_whitespace().filter(|b| b.len() == 2).count() as u32;
         if size != 2 && size != 4 {
-            bail!("llvm-objdump line {}: cannot read the encoding size: {line:?}", n + 1);
+            bail!(
+                "llvm-objdump line {}: cannot read the encoding size: {line:?}",
+                n + 1
+            );
         }
         let operands = fields.collect::<Vec<_>>().join(" ");
-        let operands = operands.split('@').next().unwrap_or_default().trim().to_string();
-        code.instrs.insert(addr, Instr { addr, size, mnemonic: mnemonic.to_string(), operands });
+        let operands = operands
+            .split('@')
+            .next()
+            .unwrap_or_default()
+            .trim()
+            .to_string();
+        code.instrs.insert(
+            addr,
+            Instr {
+                addr,
+                size,
+                mnemonic: mnemonic.to_string(),
+                operands,
+            },
+        );
     }
     if code.instrs.is_empty() {
         bail!("llvm-objdump output holds no instructions");
@@ -109,7 +128,10 @@ mod tests {
         let code = parse_objdump(SNIPPET).unwrap();
         assert_eq!(code.instrs.len(), 4);
         let v = code.at(0x1908).unwrap();
-        assert_eq!((v.size, v.mnemonic.as_str(), v.operands.as_str()), (4, "vldr", "s0, [pc, #292]"));
+        assert_eq!(
+            (v.size, v.mnemonic.as_str(), v.operands.as_str()),
+            (4, "vldr", "s0, [pc, #292]")
+        );
         assert_eq!(code.at(0x1904).unwrap().size, 2);
         assert_eq!(code.at(0x1910).unwrap().direct_target(), Some(0x18b0));
         assert!(code.at(0x1a30).is_none());

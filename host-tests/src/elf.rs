@@ -85,10 +85,19 @@ pub fn size_report(elf: &Path, top: usize) -> Result<SizeReport> {
         }
         let name = s.name().unwrap_or("?").to_string();
         let in_ram = (RAM_START..RAM_END).contains(&s.address());
-        let has_bytes = !matches!(s.kind(), SectionKind::UninitializedData | SectionKind::UninitializedTls);
+        let has_bytes = !matches!(
+            s.kind(),
+            SectionKind::UninitializedData | SectionKind::UninitializedTls
+        );
         let flash_bytes = if has_bytes { s.size() } else { 0 };
         let ram_bytes = if in_ram { s.size() } else { 0 };
-        sections.push(SectionUse { name, addr: s.address(), size: s.size(), flash_bytes, ram_bytes });
+        sections.push(SectionUse {
+            name,
+            addr: s.address(),
+            size: s.size(),
+            flash_bytes,
+            ram_bytes,
+        });
     }
     if sections.is_empty() {
         bail!("{} has no allocated sections", elf.display());
@@ -125,7 +134,11 @@ pub fn functions(elf: &Path) -> Result<Vec<Function>> {
         .filter(|s| s.kind() == SymbolKind::Text && s.size() > 0)
         .map(|s| {
             let start = (s.address() & !1) as u32;
-            Function { name: demangle(s.name().unwrap_or("?")), start, end: start + s.size() as u32 }
+            Function {
+                name: demangle(s.name().unwrap_or("?")),
+                start,
+                end: start + s.size() as u32,
+            }
         })
         .collect();
     fns.sort_by_key(|f| f.start);
@@ -146,7 +159,9 @@ mod tests {
     #[test]
     fn demangles_without_hash() {
         assert_eq!(
-            demangle("_ZN68_$LT$firmware..bench..Dot64$u20$as$u20$firmware..bench..Workload$GT$4tick17hd418c186fd89d8e5E"),
+            demangle(
+                "_ZN68_$LT$firmware..bench..Dot64$u20$as$u20$firmware..bench..Workload$GT$4tick17hd418c186fd89d8e5E"
+            ),
             "<firmware::bench::Dot64 as firmware::bench::Workload>::tick"
         );
         assert_eq!(demangle("expf"), "expf");
@@ -154,7 +169,11 @@ mod tests {
 
     #[test]
     fn finds_the_containing_function() {
-        let f = |n: &str, s, e| Function { name: n.into(), start: s, end: e };
+        let f = |n: &str, s, e| Function {
+            name: n.into(),
+            start: s,
+            end: e,
+        };
         let fns = vec![f("a", 0x10, 0x20), f("b", 0x20, 0x28), f("c", 0x40, 0x50)];
         assert_eq!(function_at(&fns, 0x10).unwrap().name, "a");
         assert_eq!(function_at(&fns, 0x27).unwrap().name, "b");

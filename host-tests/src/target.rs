@@ -60,7 +60,13 @@ pub fn require_target() -> Result<()> {
         .current_dir(workspace_root())
         .output();
     match out {
-        Ok(o) if String::from_utf8_lossy(&o.stdout).lines().any(|l| l.trim() == TARGET) => Ok(()),
+        Ok(o)
+            if String::from_utf8_lossy(&o.stdout)
+                .lines()
+                .any(|l| l.trim() == TARGET) =>
+        {
+            Ok(())
+        }
         Ok(_) => bail!(
             "the Rust target {TARGET} is not installed: run `rustup target add {TARGET}` \
              (or `bash .ci/run`, which installs it)"
@@ -81,20 +87,34 @@ pub fn build_with(bin: FirmwareBin, opt_level: Option<&str>) -> Result<PathBuf> 
     require_target()?;
     let dir = match opt_level {
         None => target_dir(),
-        Some(level) => workspace_root().join("target").join(format!("thumb-opt-{level}")),
+        Some(level) => workspace_root()
+            .join("target")
+            .join(format!("thumb-opt-{level}")),
     };
     let mut cmd = Command::new(env!("CARGO"));
     cmd.current_dir(workspace_root())
-        .args(["build", "--release", "--target", TARGET, "--bin", bin.name()])
+        .args([
+            "build",
+            "--release",
+            "--target",
+            TARGET,
+            "--bin",
+            bin.name(),
+        ])
         .args(bin.cargo_args())
         .arg("--target-dir")
         .arg(&dir);
     if let Some(level) = opt_level {
         cmd.env("CARGO_PROFILE_RELEASE_OPT_LEVEL", level);
     }
-    let status = cmd.status().context("running cargo to build the firmware")?;
+    let status = cmd
+        .status()
+        .context("running cargo to build the firmware")?;
     if !status.success() {
-        bail!("building firmware binary `{}` for {TARGET} failed ({status})", bin.name());
+        bail!(
+            "building firmware binary `{}` for {TARGET} failed ({status})",
+            bin.name()
+        );
     }
     let elf = dir.join(TARGET).join("release").join(bin.name());
     if !elf.is_file() {

@@ -69,7 +69,9 @@ pub fn parse_bench(text: &str) -> Result<BenchReport> {
         let w: Vec<&str> = line.split_whitespace().collect();
         let bad = || format!("bench report line {}: cannot read {line:?}", n + 1);
         match w.first().copied() {
-            Some("@bench") => ticks = Some(w.get(1).and_then(|t| t.parse().ok()).with_context(bad)?),
+            Some("@bench") => {
+                ticks = Some(w.get(1).and_then(|t| t.parse().ok()).with_context(bad)?)
+            }
             Some("@workload") if w.len() == 7 => {
                 let hex = |s: &str| u32::from_str_radix(s.trim_start_matches("0x"), 16);
                 workloads.push(BenchLine {
@@ -85,7 +87,9 @@ pub fn parse_bench(text: &str) -> Result<BenchReport> {
             _ => {}
         }
     }
-    let Some(ticks) = ticks else { bail!("the bench report has no `@bench` line: {text:?}") };
+    let Some(ticks) = ticks else {
+        bail!("the bench report has no `@bench` line: {text:?}")
+    };
     if !passed {
         bail!("the bench binary did not reach `@pass`: {text:?}");
     }
@@ -131,7 +135,13 @@ pub fn split_ticks(
             if !entries.contains(&pc) {
                 continue;
             }
-            current = Some((TickTrace { entry: pc, ..TickTrace::default() }, 0));
+            current = Some((
+                TickTrace {
+                    entry: pc,
+                    ..TickTrace::default()
+                },
+                0,
+            ));
         } else if entries.contains(&pc) && current.as_ref().is_some_and(|(t, _)| t.entry == pc) {
             bail!(
                 "the trace re-entered the tick at {pc:#x} before it returned: a callee is \
@@ -142,7 +152,9 @@ pub fn split_ticks(
             bail!("traced address {pc:#x} is not an instruction in the disassembly");
         };
         let class = classify(instr)?;
-        let taken = trace.get(i + 1).is_none_or(|&next| next != instr.next_addr());
+        let taken = trace
+            .get(i + 1)
+            .is_none_or(|&next| next != instr.next_addr());
         let cycles = u64::from(model.cycles(&class, taken));
         let (tick, depth) = current.as_mut().expect("inside a tick");
         tick.total.instructions += 1;
@@ -164,7 +176,10 @@ pub fn split_ticks(
         }
     }
     if let Some((t, _)) = current {
-        bail!("the trace ended inside the tick at {:#x} (the run was cut short?)", t.entry);
+        bail!(
+            "the trace ended inside the tick at {:#x} (the run was cut short?)",
+            t.entry
+        );
     }
     Ok(ticks)
 }
@@ -199,7 +214,9 @@ pub fn reachable(code: &Code, fns: &[Function], entries: &[u32]) -> Result<(Vec<
         }
         for instr in code.range(f.start, f.end) {
             indirect |= is_indirect(instr)?;
-            if let Some(t) = instr.direct_target().filter(|_| classify(instr).is_ok_and(|c| c.timing == Timing::Branch))
+            if let Some(t) = instr
+                .direct_target()
+                .filter(|_| classify(instr).is_ok_and(|c| c.timing == Timing::Branch))
                 && !(f.start..f.end).contains(&t)
             {
                 todo.push(t);
@@ -231,14 +248,33 @@ pub fn dfilter(fns: &[Function]) -> String {
 /// the executed addresses in order, and the program's semihosting output.
 pub fn run_trace(elf: &Path, filter: &str) -> Result<(Vec<u32>, String)> {
     qemu::require_qemu()?;
-    let dir = std::env::temp_dir().join(format!("fw-trace-{}", std::process::id()));
+    static RUNS: std::sync::atomic::AtomicU32 = std::sync::atomic::AtomicU32::new(0);
+    let run = RUNS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let dir = std::env::temp_dir().join(format!("fw-trace-{}-{run}", std::process::id()));
     std::fs::create_dir_all(&dir)?;
-    let log = dir.join(format!("{}.log", elf.file_name().and_then(|n| n.to_str()).unwrap_or("elf")));
+    let log = dir.join(format!(
+        "{}.log",
+        elf.file_name().and_then(|n| n.to_str()).unwrap_or("elf")
+    ));
     // The run without `-icount`: that option makes QEMU re-execute (and log again)
     // some instructions.
     let out = Command::new(qemu::QEMU)
-        .args(["-M", "mps2-an386", "-nographic", "-semihosting-config", "enable=on,target=native"])
-        .args(["-no-reboot", "-singlestep", "-d", "exec,nochain", "-dfilter", filter, "-D"])
+        .args([
+            "-M",
+            "mps2-an386",
+            "-nographic",
+            "-semihosting-config",
+            "enable=on,target=native",
+        ])
+        .args([
+            "-no-reboot",
+            "-singlestep",
+            "-d",
+            "exec,nochain",
+            "-dfilter",
+            filter,
+            "-D",
+        ])
         .arg(&log)
         .arg("-kernel")
         .arg(elf)
@@ -246,9 +282,14 @@ pub fn run_trace(elf: &Path, filter: &str) -> Result<(Vec<u32>, String)> {
         .with_context(|| format!("starting {}", qemu::QEMU))?;
     let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
     if !out.status.success() {
-        bail!("traced run of {} failed ({}): {stdout}", elf.display(), out.status);
+        bail!(
+            "traced run of {} failed ({}): {stdout}",
+            elf.display(),
+            out.status
+        );
     }
-    let text = std::fs::read_to_string(&log).with_context(|| format!("reading {}", log.display()))?;
+    let text =
+        std::fs::read_to_string(&log).with_context(|| format!("reading {}", log.display()))?;
     let _ = std::fs::remove_dir_all(&dir);
     Ok((parse_exec_log(&text)?, stdout))
 }
@@ -258,7 +299,9 @@ pub fn run_trace(elf: &Path, filter: &str) -> Result<(Vec<u32>, String)> {
 pub fn parse_exec_log(text: &str) -> Result<Vec<u32>> {
     let mut pcs = Vec::new();
     for line in text.lines().filter(|l| l.starts_with("Trace ")) {
-        let Some(fields) = line.split('[').nth(1) else { continue };
+        let Some(fields) = line.split('[').nth(1) else {
+            continue;
+        };
         let Some(pc) = fields.split('/').nth(1) else {
             bail!("cannot read the PC in QEMU log line {line:?}");
         };
@@ -300,7 +343,11 @@ mod tests {
         let mut a = 0x1002;
         let head = a;
         for _ in 0..k {
-            let bytes = if body_size == 4 { "00 00 00 00" } else { "00 00      " };
+            let bytes = if body_size == 4 {
+                "00 00 00 00"
+            } else {
+                "00 00      "
+            };
             s += &format!("    {a:x}: {bytes}  \t{body}\n");
             a += body_size;
         }
@@ -315,7 +362,11 @@ mod tests {
     fn estimate_loop(body: &str, size: u32, k: u32, n: u32) -> TickTrace {
         let (text, end) = loop_snippet(body, size, k);
         let code = parse_objdump(&text).unwrap();
-        let fns = vec![Function { name: "f".into(), start: 0x1000, end }];
+        let fns = vec![Function {
+            name: "f".into(),
+            start: 0x1000,
+            end,
+        }];
         let trace = walk_loop(&code, 0x1000, n);
         let ticks = split_ticks(&trace, &code, &fns, &[0x1000], &CycleModel::default()).unwrap();
         assert_eq!(ticks.len(), 1);
@@ -362,8 +413,16 @@ mod tests {
     2020: 80 bd        \tpop\t{r7, pc}
 ";
         let code = parse_objdump(text).unwrap();
-        let f = |n: &str, s, e| Function { name: n.into(), start: s, end: e };
-        let fns = vec![f("tick", 0x2000, 0x200a), f("g", 0x2010, 0x2012), f("h", 0x2020, 0x2022)];
+        let f = |n: &str, s, e| Function {
+            name: n.into(),
+            start: s,
+            end: e,
+        };
+        let fns = vec![
+            f("tick", 0x2000, 0x200a),
+            f("g", 0x2010, 0x2012),
+            f("h", 0x2020, 0x2022),
+        ];
         let (reach, indirect) = reachable(&code, &fns, &[0x2000]).unwrap();
         assert_eq!(reach.len(), 3);
         assert!(!indirect);
@@ -376,8 +435,20 @@ mod tests {
         let ticks = split_ticks(&trace, &code, &fns, &[0x2000], &CycleModel::default()).unwrap();
         assert_eq!(ticks.len(), 2);
         // push 3 + bl 2 + bx lr 2 + b.w 2 + pop {r7,pc} 1+2+1 = 13
-        assert_eq!(ticks[0].total, Cost { instructions: 5, cycles: 13 });
-        assert_eq!(ticks[0].per_function["g"], Cost { instructions: 1, cycles: 2 });
+        assert_eq!(
+            ticks[0].total,
+            Cost {
+                instructions: 5,
+                cycles: 13
+            }
+        );
+        assert_eq!(
+            ticks[0].per_function["g"],
+            Cost {
+                instructions: 1,
+                cycles: 2
+            }
+        );
         // A trace cut inside the tick is an error, not a short tick.
         assert!(split_ticks(&one[..3], &code, &fns, &[0x2000], &CycleModel::default()).is_err());
     }

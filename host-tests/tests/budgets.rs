@@ -15,14 +15,21 @@ fn firmware_fits_its_budgets_and_lowered_budgets_fail() {
     assert!(
         report.violations.is_empty(),
         "over budget:\n{}",
-        report.violations.iter().map(|v| format!("  {v}\n")).collect::<String>()
+        report
+            .violations
+            .iter()
+            .map(|v| format!("  {v}\n"))
+            .collect::<String>()
     );
 
     // Every registered workload was traced, and the trace's instruction count agrees
     // with `-icount shift=0` (SysTick resolution: 40 instructions over the ticks).
     assert_eq!(m.workloads.len(), firmware::bench::workload_count());
     for w in &m.workloads {
-        assert!(w.ticks > 0 && w.cycles_max >= w.cycles_min && w.cycles_min > 0, "{w:?}");
+        assert!(
+            w.ticks > 0 && w.cycles_max >= w.cycles_min && w.cycles_min > 0,
+            "{w:?}"
+        );
         let resolution = 40.0 / w.ticks as f64 + 1.0;
         assert!(
             (w.instructions_mean - w.icount_instructions as f64).abs() <= resolution,
@@ -33,7 +40,11 @@ fn firmware_fits_its_budgets_and_lowered_budgets_fail() {
         );
         // Cycles per instruction of a real Cortex-M4 workload: between 1 and 3.
         let cpi = w.cycles_mean / w.instructions_mean;
-        assert!((1.0..3.0).contains(&cpi), "{}: {cpi} cycles per instruction", w.name);
+        assert!(
+            (1.0..3.0).contains(&cpi),
+            "{}: {cpi} cycles per instruction",
+            w.name
+        );
     }
 
     // Lower each limit just below the measured figure: the check fails and names it.
@@ -43,16 +54,32 @@ fn firmware_fits_its_budgets_and_lowered_budgets_fail() {
         let v = budget::check(&m, &lowered);
         assert_eq!(v.len(), 1, "{v:?}");
         let msg = v[0].to_string();
-        assert!(msg.contains(&w.name) && msg.contains(&w.function) && msg.contains("overrun 1 "), "{msg}");
+        assert!(
+            msg.contains(&w.name) && msg.contains(&w.function) && msg.contains("overrun 1 "),
+            "{msg}"
+        );
     }
     for bin in &m.binaries {
         let mut lowered = budgets.clone();
-        let lim = lowered.binary.get_mut(&bin.name).expect("every binary has a budget");
+        let lim = lowered
+            .binary
+            .get_mut(&bin.name)
+            .expect("every binary has a budget");
         lim.flash_bytes = bin.size.flash_bytes - 1;
         lim.ram_bytes = bin.size.static_ram_bytes + lim.stack_reserve_bytes - 1;
         let v = budget::check(&m, &lowered);
         assert_eq!(v.len(), 2, "{v:?}");
-        assert!(v[0].to_string().contains(&format!("binary {}: flash", bin.name)), "{}", v[0]);
-        assert!(v[1].to_string().contains(&format!("binary {}: RAM", bin.name)), "{}", v[1]);
+        assert!(
+            v[0].to_string()
+                .contains(&format!("binary {}: flash", bin.name)),
+            "{}",
+            v[0]
+        );
+        assert!(
+            v[1].to_string()
+                .contains(&format!("binary {}: RAM", bin.name)),
+            "{}",
+            v[1]
+        );
     }
 }

@@ -79,7 +79,9 @@ impl Visitor for Driver {
 
 #[entry]
 fn main() -> ! {
-    let Some(cp) = cortex_m::Peripherals::take() else { fail() };
+    let Some(cp) = cortex_m::Peripherals::take() else {
+        fail()
+    };
     let mut syst = cp.SYST;
     syst.set_clock_source(SystClkSource::Core);
     syst.set_reload(RELOAD);

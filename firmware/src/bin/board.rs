@@ -33,9 +33,7 @@ const MAX_WORKLOADS: usize = 16;
 fn main() -> ! {
     let mut cp = match cortex_m::Peripherals::take() {
         Some(cp) => cp,
-        None => loop {
-            cortex_m::asm::udf();
-        },
+        None => cortex_m::asm::udf(),
     };
     cp.DCB.enable_trace();
     cp.DWT.enable_cycle_counter();
@@ -108,13 +106,20 @@ fn SysTick() {
     static mut TICKS: u32 = 0;
     static mut SINK: u32 = 0;
     let start = DWT::cycle_count();
-    let mut m = Measure { stats: STATS, next: 0, sink: 0 };
+    let mut m = Measure {
+        stats: STATS,
+        next: 0,
+        sink: 0,
+    };
     visit_all(&mut m);
     *SINK ^= m.sink;
     WHOLE.record(DWT::cycle_count().wrapping_sub(start));
     *TICKS = TICKS.wrapping_add(1);
-    if *TICKS % TICK_HZ == 0 {
-        visit_all(&mut Report { stats: STATS, next: 0 });
+    if TICKS.is_multiple_of(TICK_HZ) {
+        visit_all(&mut Report {
+            stats: STATS,
+            next: 0,
+        });
         let w = WHOLE.take();
         firmware::fw_info!(
             "whole tick: min {=u32} max {=u32} mean {=u32} cycles over {=u32} ticks (DWT CYCCNT), out {=u32:#x}",
