@@ -39,11 +39,11 @@ pub fn require_objdump() -> Result<()> {
     }
 }
 
-/// Disassembles `elf` with `llvm-objdump -d`.
+/// Disassembles `elf` (or an object file) with `llvm-objdump -d --mcpu=cortex-m4`.
 pub fn disassemble(elf: &Path) -> Result<Code> {
     require_objdump()?;
     let out = Command::new(OBJDUMP)
-        .arg("-d")
+        .args(["-d", "--mcpu=cortex-m4"])
         .arg(elf)
         .output()
         .with_context(|| format!("running {OBJDUMP}"))?;

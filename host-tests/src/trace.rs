@@ -6,7 +6,7 @@
 //! 1. under `-icount shift=0` (one instruction = 1 ns of virtual time): it prints each
 //!    workload's tick address and the SysTick ticks around its `TICKS` calls. SysTick
 //!    runs on the 25 MHz core clock of mps2-an386, so it advances once per 40
-//!    instructions: `instructions = 40 x SysTick ticks` (resolution 40 / `TICKS`).
+//!    instructions: `instructions = 40 x SysTick ticks` (each reading exact to one count).
 //! 2. with `-singlestep -d exec,nochain -D FILE -dfilter RANGES` (no `-icount`, which
 //!    re-executes some instructions in the log): the executed addresses of the tick
 //!    functions and every function they reach, one line per instruction.
@@ -397,6 +397,50 @@ mod tests {
     fn ldr_loop_costs_two_cycles_per_ldr() {
         let t = estimate_loop("ldr\tr0, [r1, #4]", 2, 6, 10);
         assert_eq!(t.total.cycles, predicted(6, 2, 10));
+    }
+
+    /// Assembles `k` copies of `body` in a loop of `n` iterations with llvm-mc (LLVM's
+    /// own Cortex-M4 assembler), disassembles the object with llvm-objdump as the
+    /// estimator does for the firmware, walks the loop and estimates it.
+    fn assembled_loop(body: &str, k: u32, n: u32) -> TickTrace {
+        let dir = std::env::temp_dir().join(format!("fw-asm-{}-{}", std::process::id(), body.len() * 100 + k as usize));
+        std::fs::create_dir_all(&dir).unwrap();
+        let src = dir.join("loop.s");
+        let obj = dir.join("loop.o");
+        let mut asm = String::from(".syntax unified\n.thumb\n.text\n.globl f\n.type f,%function\n.thumb_func\nf:\n  movs r3, #16\n1:\n");
+        for _ in 0..k {
+            asm += &format!("  {body}\n");
+        }
+        asm += "  subs r3, #1\n  bne 1b\n  bx lr\n.size f, .-f\n";
+        std::fs::write(&src, asm).unwrap();
+        let st = Command::new("llvm-mc")
+            .args(["-triple=thumbv7em-none-eabihf", "-mcpu=cortex-m4", "-filetype=obj", "-o"])
+            .arg(&obj)
+            .arg(&src)
+            .status()
+            .expect("llvm-mc (Debian package `llvm`; `bash .ci/run` installs it)");
+        assert!(st.success());
+        let code = crate::disasm::disassemble(&obj).unwrap();
+        let _ = std::fs::remove_dir_all(&dir);
+        let end = code.instrs.values().last().unwrap().next_addr();
+        assert_eq!(code.instrs.len() as u32, k + 4, "{code:?}");
+        let fns = vec![Function { name: "f".into(), start: 0, end }];
+        let trace = walk_loop(&code, 0, n);
+        let ticks = split_ticks(&trace, &code, &fns, &[0], &CycleModel::default()).unwrap();
+        assert_eq!(ticks.len(), 1);
+        ticks.into_iter().next().unwrap()
+    }
+
+    #[test]
+    fn assembled_smlad_vmla_ldr_loops_cost_what_the_tables_say() {
+        let t = assembled_loop("smlad r0, r1, r2, r0", 8, 16);
+        assert_eq!(t.total.cycles, predicted(8, 1, 16));
+        let t = assembled_loop("vmla.f32 s0, s2, s4", 5, 12);
+        assert_eq!(t.total.cycles, predicted(5, 3, 12));
+        let t = assembled_loop("ldr r0, [r1, #4]", 6, 10);
+        assert_eq!(t.total.cycles, predicted(6, 2, 10));
+        let t = assembled_loop("vdiv.f32 s0, s2, s4", 2, 3);
+        assert_eq!(t.total.cycles, predicted(2, 14, 3));
     }
 
     #[test]
