@@ -403,18 +403,29 @@ mod tests {
     /// own Cortex-M4 assembler), disassembles the object with llvm-objdump as the
     /// estimator does for the firmware, walks the loop and estimates it.
     fn assembled_loop(body: &str, k: u32, n: u32) -> TickTrace {
-        let dir = std::env::temp_dir().join(format!("fw-asm-{}-{}", std::process::id(), body.len() * 100 + k as usize));
+        let dir = std::env::temp_dir().join(format!(
+            "fw-asm-{}-{}",
+            std::process::id(),
+            body.len() * 100 + k as usize
+        ));
         std::fs::create_dir_all(&dir).unwrap();
         let src = dir.join("loop.s");
         let obj = dir.join("loop.o");
-        let mut asm = String::from(".syntax unified\n.thumb\n.text\n.globl f\n.type f,%function\n.thumb_func\nf:\n  movs r3, #16\n1:\n");
+        let mut asm = String::from(
+            ".syntax unified\n.thumb\n.text\n.globl f\n.type f,%function\n.thumb_func\nf:\n  movs r3, #16\n1:\n",
+        );
         for _ in 0..k {
             asm += &format!("  {body}\n");
         }
         asm += "  subs r3, #1\n  bne 1b\n  bx lr\n.size f, .-f\n";
         std::fs::write(&src, asm).unwrap();
         let st = Command::new("llvm-mc")
-            .args(["-triple=thumbv7em-none-eabihf", "-mcpu=cortex-m4", "-filetype=obj", "-o"])
+            .args([
+                "-triple=thumbv7em-none-eabihf",
+                "-mcpu=cortex-m4",
+                "-filetype=obj",
+                "-o",
+            ])
             .arg(&obj)
             .arg(&src)
             .status()
@@ -424,7 +435,11 @@ mod tests {
         let _ = std::fs::remove_dir_all(&dir);
         let end = code.instrs.values().last().unwrap().next_addr();
         assert_eq!(code.instrs.len() as u32, k + 4, "{code:?}");
-        let fns = vec![Function { name: "f".into(), start: 0, end }];
+        let fns = vec![Function {
+            name: "f".into(),
+            start: 0,
+            end,
+        }];
         let trace = walk_loop(&code, 0, n);
         let ticks = split_ticks(&trace, &code, &fns, &[0], &CycleModel::default()).unwrap();
         assert_eq!(ticks.len(), 1);
