@@ -11,9 +11,7 @@ macro_rules! fw_info { ($($arg:tt)*) => { $crate::log::defmt::info!($($arg)*) };
 /// Info-level log message (defmt syntax); a no-op without the `defmt` feature.
 #[cfg(not(feature = "defmt"))]
 #[macro_export]
-macro_rules! fw_info {
-    ($($arg:tt)*) => {{}};
-}
+macro_rules! fw_info { ($($arg:tt)*) => {{}}; }
 
 /// Warning-level log message (defmt syntax); a no-op without the `defmt` feature.
 #[cfg(feature = "defmt")]
@@ -22,9 +20,7 @@ macro_rules! fw_warn { ($($arg:tt)*) => { $crate::log::defmt::warn!($($arg)*) };
 /// Warning-level log message (defmt syntax); a no-op without the `defmt` feature.
 #[cfg(not(feature = "defmt"))]
 #[macro_export]
-macro_rules! fw_warn {
-    ($($arg:tt)*) => {{}};
-}
+macro_rules! fw_warn { ($($arg:tt)*) => {{}}; }
 
 /// Error-level log message (defmt syntax); a no-op without the `defmt` feature.
 #[cfg(feature = "defmt")]
@@ -33,6 +29,4 @@ macro_rules! fw_error { ($($arg:tt)*) => { $crate::log::defmt::error!($($arg)*) 
 /// Error-level log message (defmt syntax); a no-op without the `defmt` feature.
 #[cfg(not(feature = "defmt"))]
 #[macro_export]
-macro_rules! fw_error {
-    ($($arg:tt)*) => {{}};
-}
+macro_rules! fw_error { ($($arg:tt)*) => {{}}; }
