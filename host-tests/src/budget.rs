@@ -284,7 +284,7 @@ pub struct Violation {
 
 impl std::fmt::Display for Violation {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        let over = self.measured - self.limit;
+        let over = self.measured.saturating_sub(self.limit);
         write!(
             f,
             "{}: {} > limit {} (overrun {} = {:.1} %)",
