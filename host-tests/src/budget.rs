@@ -125,8 +125,11 @@ pub struct WorkloadCost {
     pub cycles_mean: f64,
     /// Most estimated cycles of one tick.
     pub cycles_max: u64,
-    /// Instructions per tick from SysTick under `-icount shift=0` (±40 / ticks).
+    /// Instructions per tick from SysTick under `-icount shift=0` (±8 with 10 ticks).
     pub icount_instructions: u64,
+    /// Deepest stack use of a tick in bytes, measured in QEMU by stack painting
+    /// (64 means "64 or less").
+    pub stack_bytes: u64,
     /// Per function (self cost), most cycles first.
     pub functions: Vec<FunctionCost>,
 }
@@ -265,6 +268,7 @@ pub fn estimate_workloads(elf: &Path, model: &CycleModel) -> Result<(Vec<Workloa
             cycles_mean: mine.iter().map(|t| t.total.cycles).sum::<u64>() as f64 / n,
             cycles_max: mine.iter().map(|t| t.total.cycles).max().unwrap_or(0),
             icount_instructions: w.icount_instructions_per_tick(bench.ticks),
+            stack_bytes: w.stack_bytes,
             functions,
         });
     }
@@ -338,7 +342,23 @@ pub fn check(m: &Measurement, b: &Budgets) -> Vec<Violation> {
             });
         }
     }
+    let reserve = b
+        .binary
+        .values()
+        .map(|l| l.stack_reserve_bytes)
+        .min()
+        .unwrap_or(0);
     for w in &m.workloads {
+        if w.stack_bytes > reserve {
+            v.push(Violation {
+                what: format!(
+                    "workload {} ({}): stack bytes of a tick vs the smallest stack reserve",
+                    w.name, w.function
+                ),
+                measured: w.stack_bytes,
+                limit: reserve,
+            });
+        }
         let limit = b.cycle_limit(&w.name);
         if w.cycles_max > limit {
             v.push(Violation {
@@ -448,7 +468,7 @@ impl Report {
             .collect();
         let _ = writeln!(
             s,
-            "| workload | ticks | instr/tick (trace) | instr/tick (icount) | cycles min | cycles mean | cycles max | cycles/MAC | {} | limit | status |",
+            "| workload | ticks | instr/tick (trace) | instr/tick (icount) | cycles min | cycles mean | cycles max | cycles/MAC | {} | limit | status | stack |",
             rates.join(" | ")
         );
         let _ = writeln!(
@@ -479,9 +499,14 @@ impl Report {
             } else {
                 "ok".to_string()
             };
+            let stack = if w.stack_bytes <= 64 {
+                "≤ 64 B".to_string()
+            } else {
+                format!("{} B", w.stack_bytes)
+            };
             let _ = writeln!(
                 s,
-                "| {} | {} | {:.0} | {} | {} | {:.0} | {} | {} | {} | {} | {} |",
+                "| {} | {} | {:.0} | {} | {} | {:.0} | {} | {} | {} | {} | {} | {} |",
                 w.name,
                 w.ticks,
                 w.instructions_mean,
@@ -492,13 +517,15 @@ impl Report {
                 per_mac,
                 shares.join(" | "),
                 limit,
-                status
+                status,
+                stack
             );
         }
         let _ = writeln!(
             s,
             "\nShares use the worst traced tick at {} MHz. icount: SysTick under `-icount shift=0` \
-             (40 instructions per count; the measuring loop subtracted).",
+             (40 instructions per count; the measuring loop subtracted). stack: deepest stack use \
+             of a tick in QEMU (painted stack), checked against the stack reserve.",
             b.mcu.clock_hz / 1_000_000
         );
         if m.traced_whole_text {
@@ -576,6 +603,7 @@ mod tests {
                 cycles_mean: cycles as f64,
                 cycles_max: cycles,
                 icount_instructions: 1,
+                stack_bytes: 64,
                 functions: vec![],
             }],
             traced_whole_text: false,

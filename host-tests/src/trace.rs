@@ -40,6 +40,9 @@ pub struct BenchLine {
     pub systick: u64,
     /// SysTick counts of the same loop calling an empty function.
     pub baseline_systick: u64,
+    /// Deepest stack use of the ticks in bytes, below the caller's stack pointer
+    /// (painted stack; 64 means "64 or less").
+    pub stack_bytes: u64,
 }
 
 /// The bench binary's report.
@@ -60,7 +63,7 @@ impl BenchLine {
     }
 }
 
-/// Parses `@bench TICKS`, `@workload NAME ADDR MACS SYSTICK BASELINE OUT`, `@pass`.
+/// Parses `@bench TICKS`, `@workload NAME ADDR MACS SYSTICK BASELINE OUT STACK`, `@pass`.
 pub fn parse_bench(text: &str) -> Result<BenchReport> {
     let mut ticks = None;
     let mut workloads = Vec::new();
@@ -72,7 +75,7 @@ pub fn parse_bench(text: &str) -> Result<BenchReport> {
             Some("@bench") => {
                 ticks = Some(w.get(1).and_then(|t| t.parse().ok()).with_context(bad)?)
             }
-            Some("@workload") if w.len() == 7 => {
+            Some("@workload") if w.len() == 8 => {
                 let hex = |s: &str| u32::from_str_radix(s.trim_start_matches("0x"), 16);
                 workloads.push(BenchLine {
                     name: w[1].to_string(),
@@ -80,6 +83,7 @@ pub fn parse_bench(text: &str) -> Result<BenchReport> {
                     macs: w[3].parse().with_context(bad)?,
                     systick: w[4].parse().with_context(bad)?,
                     baseline_systick: w[5].parse().with_context(bad)?,
+                    stack_bytes: w[7].parse().with_context(bad)?,
                 });
             }
             Some("@pass") => passed = true,
@@ -517,11 +521,12 @@ mod tests {
         let log = "Trace 0: 0x7f15c002c500 [00800400/00001904/00000010/ff000201] sym\n\
                    Trace 0: 0x7f15c002c6c0 [00800400/00001906/00000010/ff000201] sym\n";
         assert_eq!(parse_exec_log(log).unwrap(), vec![0x1904, 0x1906]);
-        let rep = "@bench 10\n@workload dot64 0x00001905 64 71 1 41d5380f\n@pass\n";
+        let rep = "@bench 10\n@workload dot64 0x00001905 64 71 1 41d5380f 64\n@pass\n";
         let b = parse_bench(rep).unwrap();
         assert_eq!(b.ticks, 10);
         assert_eq!(b.workloads[0].tick_addr, 0x1904);
         assert_eq!(b.workloads[0].icount_instructions_per_tick(10), 280);
+        assert_eq!(b.workloads[0].stack_bytes, 64);
         assert!(parse_bench("@bench 10\n").is_err());
     }
 }

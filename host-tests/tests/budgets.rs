@@ -61,6 +61,23 @@ fn firmware_fits_its_budgets_and_lowered_budgets_fail() {
             "{msg}"
         );
     }
+    // A stack reserve below the deepest tick's stack use fails, naming the workload.
+    let deepest = m
+        .workloads
+        .iter()
+        .max_by_key(|w| w.stack_bytes)
+        .expect("workloads");
+    let mut lowered = budgets.clone();
+    for lim in lowered.binary.values_mut() {
+        lim.stack_reserve_bytes = deepest.stack_bytes - 1;
+    }
+    let v = budget::check(&m, &lowered);
+    assert!(
+        v.iter()
+            .any(|v| v.what.contains(&deepest.name) && v.what.contains("stack")),
+        "{v:?}"
+    );
+
     for bin in &m.binaries {
         let mut lowered = budgets.clone();
         let lim = lowered
