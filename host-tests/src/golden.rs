@@ -25,19 +25,14 @@ pub fn parse_report(text: &str) -> Result<Vec<Suite>> {
             None => {}
             Some("@suite") => {
                 let name = words.next().unwrap_or_default().to_string();
-                current = Some(Suite {
-                    name,
-                    records: Vec::new(),
-                });
+                current = Some(Suite { name, records: Vec::new() });
             }
             Some("@end") => match current.take() {
                 Some(s) => suites.push(s),
                 None => bail!("report line {line_no}: @end without @suite"),
             },
             Some("@pass") => passed = true,
-            Some(word) if word.starts_with('@') => {
-                bail!("report line {line_no}: target reported `{line}`")
-            }
+            Some(word) if word.starts_with('@') => bail!("report line {line_no}: target reported `{line}`"),
             Some(func) => {
                 let Some(suite) = current.as_mut() else {
                     bail!("report line {line_no}: record outside a suite: `{line}`");
@@ -105,10 +100,7 @@ pub fn check_report(report: &str) -> Result<Vec<SuiteCheck>> {
         let Some(suite) = suites.iter().find(|s| s.name == name) else {
             bail!("the QEMU report has no `{name}` suite");
         };
-        checks.push(SuiteCheck {
-            name,
-            result: crate::compare::compare(&suite.records, &host_records),
-        });
+        checks.push(SuiteCheck { name, result: crate::compare::compare(&suite.records, &host_records) });
     }
     Ok(checks)
 }

@@ -22,10 +22,7 @@ impl Report {
             Ok(h) => h,
             Err(()) => fail(),
         };
-        Report {
-            buf: heapless::String::new(),
-            host,
-        }
+        Report { buf: heapless::String::new(), host }
     }
 
     fn line(&mut self, args: core::fmt::Arguments) {
@@ -61,13 +58,7 @@ fn main() -> ! {
         for i in 0..golden::MATH_POINTS {
             let x = f.input(i);
             let y = f.eval(x);
-            out.line(format_args!(
-                "{} {} {:08x} {:08x}",
-                f.name(),
-                i,
-                x.to_bits(),
-                y.to_bits()
-            ));
+            out.line(format_args!("{} {} {:08x} {:08x}", f.name(), i, x.to_bits(), y.to_bits()));
         }
     }
     out.line(format_args!("@end math"));
@@ -75,12 +66,7 @@ fn main() -> ! {
     out.line(format_args!("@suite dot {}", golden::DOT_CASES));
     for case in 0..golden::DOT_CASES {
         let y = golden::dot_output(case);
-        out.line(format_args!(
-            "dot {} {:08x} {:08x}",
-            case,
-            case as u32,
-            y.to_bits()
-        ));
+        out.line(format_args!("dot {} {:08x} {:08x}", case, case as u32, y.to_bits()));
     }
     out.line(format_args!("@end dot"));
 
