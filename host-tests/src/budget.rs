@@ -521,6 +521,30 @@ impl Report {
                 stack
             );
         }
+        // The board binary runs every registered workload in one tick.
+        let sum = |f: fn(&WorkloadCost) -> f64| m.workloads.iter().map(f).sum::<f64>();
+        let max_sum = sum(|w| w.cycles_max as f64);
+        let shares: Vec<String> = b
+            .mcu
+            .control_rates_hz
+            .iter()
+            .map(|&r| {
+                format!(
+                    "{:.3} %",
+                    100.0 * max_sum * r as f64 / b.mcu.clock_hz as f64
+                )
+            })
+            .collect();
+        let _ = writeln!(
+            s,
+            "| all workloads (one board tick) | | {:.0} | {:.0} | {:.0} | {:.0} | {:.0} | - | {} | - | - | - |",
+            sum(|w| w.instructions_mean),
+            sum(|w| w.icount_instructions as f64),
+            sum(|w| w.cycles_min as f64),
+            sum(|w| w.cycles_mean),
+            max_sum,
+            shares.join(" | ")
+        );
         let _ = writeln!(
             s,
             "\nShares use the worst traced tick at {} MHz. icount: SysTick under `-icount shift=0` \
