@@ -473,7 +473,7 @@ impl Report {
         );
         let _ = writeln!(
             s,
-            "|---|---:|---:|---:|---:|---:|---:|---:|{}---:|---|",
+            "|---|---:|---:|---:|---:|---:|---:|---:|{}---:|---|---:|",
             "---:|".repeat(rates.len())
         );
         for w in &m.workloads {
@@ -669,6 +669,26 @@ mod tests {
             s.contains("dot64") && s.contains("Dot64") && s.contains("overrun 7"),
             "{s}"
         );
+    }
+
+    #[test]
+    fn markdown_tables_are_rectangular() {
+        let r = report(measurement(1000, 100, 400), budgets());
+        let text = r.markdown();
+        let mut header_cells = None;
+        for line in text.lines() {
+            if !line.starts_with('|') {
+                header_cells = None;
+                continue;
+            }
+            let cells = line.matches('|').count();
+            match header_cells {
+                None => header_cells = Some(cells),
+                Some(n) => assert_eq!(cells, n, "row {line:?}"),
+            }
+        }
+        assert!(text.contains("| dot64 | 1 |"), "{text}");
+        assert!(r.json().unwrap().contains("\"violations\": []"));
     }
 
     #[test]
