@@ -4,7 +4,12 @@
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
+pub mod budget;
 pub mod compare;
+pub mod cycles;
+pub mod disasm;
+pub mod elf;
 pub mod golden;
 pub mod qemu;
 pub mod target;
+pub mod trace;

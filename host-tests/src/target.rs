@@ -27,6 +27,9 @@ pub enum FirmwareBin {
     Board,
     /// The QEMU mps2-an386 test binary (package `firmware/qemu`).
     Qemu,
+    /// The QEMU mps2-an386 bench binary: runs every registered workload
+    /// (`firmware::bench`) for the cycle estimator (package `firmware/qemu`).
+    QemuBench,
 }
 
 impl FirmwareBin {
@@ -35,6 +38,7 @@ impl FirmwareBin {
         match self {
             FirmwareBin::Board => "board",
             FirmwareBin::Qemu => "firmware-qemu",
+            FirmwareBin::QemuBench => "firmware-qemu-bench",
         }
     }
 
@@ -42,7 +46,9 @@ impl FirmwareBin {
     fn cargo_args(self) -> &'static [&'static str] {
         match self {
             FirmwareBin::Board => &["-p", "firmware", "--features", "board"],
-            FirmwareBin::Qemu => &["--manifest-path", "firmware/qemu/Cargo.toml"],
+            FirmwareBin::Qemu | FirmwareBin::QemuBench => {
+                &["--manifest-path", "firmware/qemu/Cargo.toml"]
+            }
         }
     }
 }
@@ -71,9 +77,22 @@ pub fn require_target() -> Result<()> {
 
 /// Builds a firmware binary in release for the target and returns the ELF path.
 pub fn build(bin: FirmwareBin) -> Result<PathBuf> {
+    build_with(bin, None)
+}
+
+/// Builds a firmware binary in release, optionally with another `opt-level` than the
+/// checked-in release profile (`CARGO_PROFILE_RELEASE_OPT_LEVEL`, in its own target
+/// directory `target/thumb-opt-LEVEL` so the default build stays cached).
+pub fn build_with(bin: FirmwareBin, opt_level: Option<&str>) -> Result<PathBuf> {
     require_target()?;
-    let status = Command::new(env!("CARGO"))
-        .current_dir(workspace_root())
+    let dir = match opt_level {
+        None => target_dir(),
+        Some(level) => workspace_root()
+            .join("target")
+            .join(format!("thumb-opt-{level}")),
+    };
+    let mut cmd = Command::new(env!("CARGO"));
+    cmd.current_dir(workspace_root())
         .args([
             "build",
             "--release",
@@ -84,7 +103,11 @@ pub fn build(bin: FirmwareBin) -> Result<PathBuf> {
         ])
         .args(bin.cargo_args())
         .arg("--target-dir")
-        .arg(target_dir())
+        .arg(&dir);
+    if let Some(level) = opt_level {
+        cmd.env("CARGO_PROFILE_RELEASE_OPT_LEVEL", level);
+    }
+    let status = cmd
         .status()
         .context("running cargo to build the firmware")?;
     if !status.success() {
@@ -93,7 +116,7 @@ pub fn build(bin: FirmwareBin) -> Result<PathBuf> {
             bin.name()
         );
     }
-    let elf = target_dir().join(TARGET).join("release").join(bin.name());
+    let elf = dir.join(TARGET).join("release").join(bin.name());
     if !elf.is_file() {
         bail!("cargo reported success but {} is missing", elf.display());
     }

@@ -197,7 +197,7 @@ fn main() -> ! {
 
     let mut ticks: u32 = 0;
     let mut sequence: u16 = 0;
-    let mut comp_max_cycles: u32 = 0;
+    let mut comp_cycles = firmware::bench::TickStats::new();
     let mut comp_faults = FaultFlags::NONE;
     loop {
         if !COMPENSATOR_DUE.swap(false, Ordering::Acquire) {
@@ -238,22 +238,24 @@ fn main() -> ! {
         .encode();
         bus.send(&frame);
         let cycles = DWT::cycle_count().wrapping_sub(start);
-        comp_max_cycles = comp_max_cycles.max(cycles);
+        comp_cycles.record(cycles);
         comp_faults |= out.faults;
         if ticks.is_multiple_of(TICK_HZ) {
             let pwm_cycles = PWM_TICK_MAX_CYCLES.swap(0, Ordering::Relaxed);
             let pwm_faults = PWM_FAULTS.swap(0, Ordering::Relaxed);
+            let comp = comp_cycles.take();
             firmware::fw_info!(
-                "tick {=u32}: PWM tick max {=u32} cycles, compensator tick max {=u32} cycles (DWT CYCCNT); faults pwm {=u32:#06x} comp {=u16:#06x}; ff {=f32} A",
+                "tick {=u32}: PWM tick max {=u32} cycles; compensator tick min/mean/max {=u32}/{=u32}/{=u32} cycles (DWT CYCCNT, measured); faults pwm {=u32:#06x} comp {=u16:#06x}; ff {=f32} A",
                 ticks,
                 pwm_cycles,
-                comp_max_cycles,
+                comp.min_cycles,
+                comp.mean_cycles(),
+                comp.max_cycles,
                 pwm_faults,
                 comp_faults.bits(),
                 out.current_a
             );
-            let _ = (pwm_cycles, pwm_faults);
-            comp_max_cycles = 0;
+            let _ = (pwm_cycles, pwm_faults, comp);
             comp_faults = FaultFlags::NONE;
         }
     }

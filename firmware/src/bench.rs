@@ -1,0 +1,288 @@
+//! Measured workloads: the per-tick computations whose size and cycles the budget
+//! checks track (`host-tests`, `cargo run -p host-tests --bin budget`).
+//!
+//! A workload is a type implementing [`Workload`]; its [`Workload::tick`] is the
+//! measured entry point, marked `#[inline(never)]` so it keeps one address and one
+//! stable symbol (`<firmware::bench::Dot64 as firmware::bench::Workload>::tick`).
+//! Registering a workload is one line in [`visit_all`]. The QEMU bench binary
+//! (`firmware/qemu/src/bench.rs`), the board binary and the host tests all drive
+//! the registered workloads through a [`Visitor`].
+
+use crate::golden;
+use crate::math;
+
+/// A per-tick computation measured by the budget checks.
+pub trait Workload {
+    /// Stable name used in reports and in `host-tests/budgets.toml`.
+    const NAME: &'static str;
+    /// Multiply-accumulates per tick (0 when the workload is not MAC-bound); the
+    /// reports print cycles per MAC beside it.
+    const MACS: u32 = 0;
+    /// The workload's state with deterministic inputs.
+    fn new() -> Self;
+    /// One control tick. Implementations mark it `#[inline(never)]`.
+    fn tick(&mut self);
+    /// A value derived from the last tick's result (keeps the work observable).
+    fn output(&self) -> f32;
+}
+
+/// Something that runs workloads one type at a time (a benchmark driver, a test).
+pub trait Visitor {
+    /// Called once per registered workload.
+    fn visit<W: Workload>(&mut self);
+}
+
+/// Calls `v.visit::<W>()` for every registered workload, in report order.
+///
+/// Adding a workload: implement [`Workload`] and add one line here.
+pub fn visit_all<V: Visitor>(v: &mut V) {
+    v.visit::<Dot64>();
+    v.visit::<LstmGateActivations64>();
+    v.visit::<JointTrig6>();
+}
+
+/// Number of registered workloads.
+pub fn workload_count() -> usize {
+    struct Count(usize);
+    impl Visitor for Count {
+        fn visit<W: Workload>(&mut self) {
+            self.0 += 1;
+        }
+    }
+    let mut c = Count(0);
+    visit_all(&mut c);
+    c.0
+}
+
+/// Phase advance per tick: the inputs change every tick, so the data-dependent
+/// paths of the math primitives show up in the min/max spread.
+const PHASE_STEP: f32 = 0.013;
+
+/// An f32 dot product of two 64-element vectors (one LSTM gate row of the paper's
+/// 64-cell layer), `math::dot`.
+pub struct Dot64 {
+    a: [f32; golden::DOT_LEN],
+    b: [f32; golden::DOT_LEN],
+    out: f32,
+}
+
+impl Workload for Dot64 {
+    const NAME: &'static str = "dot64";
+    const MACS: u32 = golden::DOT_LEN as u32;
+
+    fn new() -> Self {
+        let (a, b) = golden::dot_case(0);
+        Dot64 { a, b, out: 0.0 }
+    }
+
+    #[inline(never)]
+    fn tick(&mut self) {
+        self.out = math::dot(&self.a, &self.b);
+        self.a[0] = self.out * 1.0e-3;
+    }
+
+    fn output(&self) -> f32 {
+        self.out
+    }
+}
+
+/// Number of cells of the paper's LSTM layer.
+pub const LSTM_CELLS: usize = 64;
+
+/// The activations of one LSTM step of 64 cells: sigmoid on the input, forget and
+/// output gates (3 x 64), tanh on the candidate and the cell state (2 x 64),
+/// `math::sigmoid` and `math::tanh`.
+pub struct LstmGateActivations64 {
+    pre: [f32; LSTM_CELLS],
+    phase: f32,
+    out: f32,
+}
+
+impl Workload for LstmGateActivations64 {
+    const NAME: &'static str = "lstm_gate_activations64";
+
+    fn new() -> Self {
+        let mut pre = [0.0f32; LSTM_CELLS];
+        for (k, p) in pre.iter_mut().enumerate() {
+            *p = 12.0 * golden::unit(golden::hash(k as u32)) - 6.0;
+        }
+        LstmGateActivations64 {
+            pre,
+            phase: 0.0,
+            out: 0.0,
+        }
+    }
+
+    #[inline(never)]
+    fn tick(&mut self) {
+        let mut acc = 0.0f32;
+        for &p in &self.pre {
+            let x = p + self.phase;
+            let i = math::sigmoid(x);
+            let f = math::sigmoid(x - 1.0);
+            let o = math::sigmoid(x + 1.0);
+            let g = math::tanh(x * 0.5);
+            let h = o * math::tanh(f * x + i * g);
+            acc += h;
+        }
+        self.out = acc;
+        self.phase = (self.phase + PHASE_STEP) % 1.0;
+    }
+
+    fn output(&self) -> f32 {
+        self.out
+    }
+}
+
+/// Number of joints of the arm.
+pub const JOINTS: usize = 6;
+
+/// Sine and cosine of the six joint angles, what the rigid-body dynamics model
+/// needs first in every tick (`math::sin_cos`).
+pub struct JointTrig6 {
+    q_rad: [f32; JOINTS],
+    out: f32,
+}
+
+impl Workload for JointTrig6 {
+    const NAME: &'static str = "joint_trig6";
+
+    fn new() -> Self {
+        let mut q_rad = [0.0f32; JOINTS];
+        for (k, q) in q_rad.iter_mut().enumerate() {
+            *q = 6.0 * golden::unit(golden::hash(100 + k as u32)) - 3.0;
+        }
+        JointTrig6 { q_rad, out: 0.0 }
+    }
+
+    #[inline(never)]
+    fn tick(&mut self) {
+        let mut acc = 0.0f32;
+        for q in self.q_rad.iter_mut() {
+            let (s, c) = math::sin_cos(*q);
+            acc += s * c;
+            *q += PHASE_STEP;
+        }
+        self.out = acc;
+    }
+
+    fn output(&self) -> f32 {
+        self.out
+    }
+}
+
+/// Per-tick cycle statistics (min, max, mean) over a reporting window; the board
+/// binary keeps one per workload and reports it over defmt.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TickStats {
+    /// Fewest cycles of one tick in the window.
+    pub min_cycles: u32,
+    /// Most cycles of one tick in the window.
+    pub max_cycles: u32,
+    /// Sum of the window's cycles (u64: no overflow for 2^32 ticks of 2^32 cycles).
+    pub sum_cycles: u64,
+    /// Ticks in the window.
+    pub ticks: u32,
+}
+
+impl Default for TickStats {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl TickStats {
+    /// An empty window.
+    pub const fn new() -> Self {
+        TickStats {
+            min_cycles: u32::MAX,
+            max_cycles: 0,
+            sum_cycles: 0,
+            ticks: 0,
+        }
+    }
+
+    /// Adds one tick's cycles.
+    pub fn record(&mut self, cycles: u32) {
+        self.min_cycles = self.min_cycles.min(cycles);
+        self.max_cycles = self.max_cycles.max(cycles);
+        self.sum_cycles += u64::from(cycles);
+        self.ticks = self.ticks.saturating_add(1);
+    }
+
+    /// Mean cycles per tick (rounded down); 0 for an empty window.
+    pub fn mean_cycles(&self) -> u32 {
+        match self.ticks {
+            0 => 0,
+            n => (self.sum_cycles / u64::from(n)) as u32,
+        }
+    }
+
+    /// Returns the window's statistics and starts a new one.
+    pub fn take(&mut self) -> TickStats {
+        core::mem::take(self)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    struct RunAll {
+        names: [&'static str; 8],
+        n: usize,
+    }
+    impl Visitor for RunAll {
+        fn visit<W: Workload>(&mut self) {
+            let mut w = W::new();
+            let mut prev = f32::NAN;
+            for _ in 0..5 {
+                w.tick();
+                assert!(w.output().is_finite(), "{}", W::NAME);
+                prev = w.output();
+            }
+            assert!(prev.is_finite());
+            assert!(
+                !self.names[..self.n].contains(&W::NAME),
+                "duplicate {}",
+                W::NAME
+            );
+            self.names[self.n] = W::NAME;
+            self.n += 1;
+        }
+    }
+
+    #[test]
+    fn registered_workloads_run_and_have_unique_names() {
+        let mut v = RunAll {
+            names: [""; 8],
+            n: 0,
+        };
+        visit_all(&mut v);
+        assert_eq!(v.n, workload_count());
+        assert!(v.n >= 3);
+    }
+
+    #[test]
+    fn dot64_computes_the_golden_dot_product() {
+        let mut w = Dot64::new();
+        w.tick();
+        assert_eq!(w.output().to_bits(), golden::dot_output(0).to_bits());
+    }
+
+    #[test]
+    fn tick_stats_min_max_mean() {
+        let mut s = TickStats::new();
+        assert_eq!(s.mean_cycles(), 0);
+        for c in [10, 30, 20] {
+            s.record(c);
+        }
+        assert_eq!(
+            (s.min_cycles, s.max_cycles, s.mean_cycles(), s.ticks),
+            (10, 30, 20, 3)
+        );
+        let old = s.take();
+        assert_eq!(old.ticks, 3);
+        assert_eq!(s, TickStats::new());
+    }
+}

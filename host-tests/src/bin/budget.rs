@@ -1,0 +1,54 @@
+//! Size and cycle budget table of the firmware: builds the target binaries, sizes
+//! them, estimates each workload's Cortex-M4 cycles from a QEMU instruction trace
+//! weighted by the TRM cycle tables, and compares with `host-tests/budgets.toml`.
+//!
+//! `cargo run -p host-tests --bin budget [-- --json] [--budgets FILE]
+//! [--opt-level 2|3|s|z] [--pipeline-refill P]`; exits 1 when a budget is exceeded.
+use anyhow::{Context, Result, bail};
+use host_tests::budget::{self, Budgets, Options};
+use std::path::PathBuf;
+
+fn main() -> std::process::ExitCode {
+    match run() {
+        Ok(true) => std::process::ExitCode::SUCCESS,
+        Ok(false) => std::process::ExitCode::FAILURE,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            std::process::ExitCode::from(2)
+        }
+    }
+}
+
+fn run() -> Result<bool> {
+    let mut json = false;
+    let mut file = budget::default_budget_file();
+    let mut opts = Options::default();
+    let mut args = std::env::args().skip(1);
+    while let Some(a) = args.next() {
+        let mut value = || args.next().with_context(|| format!("{a} needs a value"));
+        match a.as_str() {
+            "--json" => json = true,
+            "--budgets" => file = PathBuf::from(value()?),
+            "--opt-level" => opts.opt_level = Some(value()?),
+            "--pipeline-refill" => opts.model.pipeline_refill = value()?.parse()?,
+            "-h" | "--help" => {
+                println!(
+                    "usage: budget [--json] [--budgets FILE] [--opt-level 2|3|s|z] [--pipeline-refill P]"
+                );
+                return Ok(true);
+            }
+            other => bail!("unknown argument `{other}` (try --help)"),
+        }
+    }
+    let budgets = Budgets::load(&file)?;
+    let report = budget::report(budget::measure(&opts)?, budgets);
+    if json {
+        println!("{}", report.json()?);
+    } else {
+        print!("{}", report.markdown());
+    }
+    for v in &report.violations {
+        eprintln!("over budget: {v}");
+    }
+    Ok(report.violations.is_empty())
+}

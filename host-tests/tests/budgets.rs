@@ -1,0 +1,104 @@
+//! Size and cycle budgets: the firmware's binaries and workloads fit the limits in
+//! `host-tests/budgets.toml`, the cycle estimate agrees with QEMU's deterministic
+//! instruction count, and the check fails, naming the overrun, when a limit is
+//! lowered below the measured figure.
+//!
+//! Cycle figures are estimates (QEMU trace x Cortex-M4 TRM cycle tables).
+use host_tests::budget::{self, Budgets, Options};
+
+#[test]
+fn firmware_fits_its_budgets_and_lowered_budgets_fail() {
+    let budgets = Budgets::load(&budget::default_budget_file()).unwrap_or_else(|e| panic!("{e:#}"));
+    let m = budget::measure(&Options::default()).unwrap_or_else(|e| panic!("{e:#}"));
+    let report = budget::report(m.clone(), budgets.clone());
+    println!("{}", report.markdown());
+    assert!(
+        report.violations.is_empty(),
+        "over budget:\n{}",
+        report
+            .violations
+            .iter()
+            .map(|v| format!("  {v}\n"))
+            .collect::<String>()
+    );
+
+    // Every registered workload was traced, and the trace's instruction count agrees
+    // with `-icount shift=0`: SysTick counts 40 instructions, and both the ticks'
+    // loop and the empty baseline loop are read to +-1 count; the baseline's own
+    // `bx lr` is subtracted too.
+    assert_eq!(m.workloads.len(), firmware::bench::workload_count());
+    for w in &m.workloads {
+        assert!(
+            w.ticks > 0 && w.cycles_max >= w.cycles_min && w.cycles_min > 0,
+            "{w:?}"
+        );
+        let resolution = 2.0 * 40.0 / w.ticks as f64 + 2.0;
+        assert!(
+            (w.instructions_mean - w.icount_instructions as f64).abs() <= resolution,
+            "{}: trace {} vs icount {} instructions per tick",
+            w.name,
+            w.instructions_mean,
+            w.icount_instructions
+        );
+        // Cycles per instruction of a real Cortex-M4 workload: between 1 and 3.
+        let cpi = w.cycles_mean / w.instructions_mean;
+        assert!(
+            (1.0..3.0).contains(&cpi),
+            "{}: {cpi} cycles per instruction",
+            w.name
+        );
+    }
+
+    // Lower each limit just below the measured figure: the check fails and names it.
+    for w in &m.workloads {
+        let mut lowered = budgets.clone();
+        lowered.cycles.insert(w.name.clone(), w.cycles_max - 1);
+        let v = budget::check(&m, &lowered);
+        assert_eq!(v.len(), 1, "{v:?}");
+        let msg = v[0].to_string();
+        assert!(
+            msg.contains(&w.name) && msg.contains(&w.function) && msg.contains("overrun 1 "),
+            "{msg}"
+        );
+    }
+    // A stack reserve below the deepest tick's stack use fails, naming the workload.
+    let deepest = m
+        .workloads
+        .iter()
+        .max_by_key(|w| w.stack_bytes)
+        .expect("workloads");
+    let mut lowered = budgets.clone();
+    for lim in lowered.binary.values_mut() {
+        lim.stack_reserve_bytes = deepest.stack_bytes - 1;
+    }
+    let v = budget::check(&m, &lowered);
+    assert!(
+        v.iter()
+            .any(|v| v.what.contains(&deepest.name) && v.what.contains("stack")),
+        "{v:?}"
+    );
+
+    for bin in &m.binaries {
+        let mut lowered = budgets.clone();
+        let lim = lowered
+            .binary
+            .get_mut(&bin.name)
+            .expect("every binary has a budget");
+        lim.flash_bytes = bin.size.flash_bytes - 1;
+        lim.ram_bytes = bin.size.static_ram_bytes + lim.stack_reserve_bytes - 1;
+        let v = budget::check(&m, &lowered);
+        assert_eq!(v.len(), 2, "{v:?}");
+        assert!(
+            v[0].to_string()
+                .contains(&format!("binary {}: flash", bin.name)),
+            "{}",
+            v[0]
+        );
+        assert!(
+            v[1].to_string()
+                .contains(&format!("binary {}: RAM", bin.name)),
+            "{}",
+            v[1]
+        );
+    }
+}
