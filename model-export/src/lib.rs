@@ -4,3 +4,6 @@
 #![warn(missing_docs)]
 
 pub mod cli;
+pub mod identify;
+pub mod logs;
+pub mod model_file;
