@@ -491,5 +491,8 @@ impl ErrorAccumulator {
     }
 }
 
+pub mod commands;
+pub mod pipeline;
+
 #[cfg(test)]
 mod tests;

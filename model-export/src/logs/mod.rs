@@ -9,6 +9,7 @@
 //! Every error names the file, the 1-based line and the field (column name or
 //! 1-based index) it concerns.
 
+pub mod args;
 pub mod preprocess;
 pub mod signal;
 
