@@ -30,7 +30,9 @@ fn simulate(m: &RobotBaseModel, n: usize) -> Samples {
         torque_nm: None,
     };
     for j in 0..6 {
-        let c: Vec<(f64, f64)> = (0..5).map(|_| (rng.gen_range(-0.5..0.5), rng.gen_range(-0.5..0.5))).collect();
+        let c: Vec<(f64, f64)> = (0..5)
+            .map(|_| (rng.gen_range(-0.5..0.5), rng.gen_range(-0.5..0.5)))
+            .collect();
         for k in 0..n {
             let t = s.time_s[k];
             let (mut q, mut qd, mut qdd) = (0.0, 0.0, 0.0);
@@ -49,7 +51,9 @@ fn simulate(m: &RobotBaseModel, n: usize) -> Samples {
     let beta = m.base.beta(&m.robot.standard_parameters());
     let mut tau = pipeline::predict(m, &beta, &s);
     let noise = Normal::new(0.0, 0.5).unwrap();
-    tau.iter_mut().flatten().for_each(|v| *v += noise.sample(&mut rng));
+    tau.iter_mut()
+        .flatten()
+        .for_each(|v| *v += noise.sample(&mut rng));
     s.torque_nm = Some(tau);
     s
 }
@@ -67,7 +71,11 @@ fn best<T>(mut f: impl FnMut() -> T) -> (f64, T) {
 }
 
 fn main() {
-    let joints = JointArgs { lock: vec![], friction_offset: false, coulomb_smoothing_rad_s: None };
+    let joints = JointArgs {
+        lock: vec![],
+        friction_offset: false,
+        coulomb_smoothing_rad_s: None,
+    };
     let m = RobotBaseModel::new(load_robot(Path::new(ROBOT), &joints).unwrap()).unwrap();
     let names = m.parameter_names();
     let logs = [simulate(&m, SAMPLES)];
@@ -86,17 +94,43 @@ fn main() {
     });
     let (t_acc, ne) = best(|| pipeline::accumulate(&m, &logs));
     let (t_ols, _) = best(|| solve(&mut ne.clone(), &names, &IdentifyOptions::default()).unwrap());
-    let wls = IdentifyOptions { weighting: Weighting::PerJointFromOls, ..Default::default() };
+    let wls = IdentifyOptions {
+        weighting: Weighting::PerJointFromOls,
+        ..Default::default()
+    };
     let (t_wls, id) = best(|| solve(&mut ne.clone(), &names, &wls).unwrap());
 
-    println!("identification benchmark: UR-type 6R, {} base parameters, {SAMPLES} samples ({} equations)", names.len(), 6 * SAMPLES);
+    println!(
+        "identification benchmark: UR-type 6R, {} base parameters, {SAMPLES} samples ({} equations)",
+        names.len(),
+        6 * SAMPLES
+    );
     println!("wall-clock, best of 3, this machine");
     println!("{:<58} {:>10}", "stage", "time [s]");
-    println!("{:<58} {:>10.3}", "regressor only (f64 RNEA-based, blocks of 256 states)", t_reg);
-    println!("{:<58} {:>10.3}", "regressor + normal equations (blocked gemm)", t_acc);
-    println!("{:<58} {:>10.4}", "solve OLS (equilibrate, eigen, Cholesky, std)", t_ols);
-    println!("{:<58} {:>10.4}", "solve WLS (OLS pass + weighted pass)", t_wls);
-    println!("{:<58} {:>10.3}", "total identification (accumulate + WLS)", t_acc + t_wls);
+    println!(
+        "{:<58} {:>10.3}",
+        "regressor only (f64 RNEA-based, blocks of 256 states)", t_reg
+    );
+    println!(
+        "{:<58} {:>10.3}",
+        "regressor + normal equations (blocked gemm)", t_acc
+    );
+    println!(
+        "{:<58} {:>10.4}",
+        "solve OLS (equilibrate, eigen, Cholesky, std)", t_ols
+    );
+    println!(
+        "{:<58} {:>10.4}",
+        "solve WLS (OLS pass + weighted pass)", t_wls
+    );
+    println!(
+        "{:<58} {:>10.3}",
+        "total identification (accumulate + WLS)",
+        t_acc + t_wls
+    );
     println!("(normal-equation folding alone ≈ {:.3} s)", t_acc - t_reg);
-    println!("condition number {:.3e}, scaled {:.3e}; per-joint sigma {:?}", id.condition_number, id.condition_number_scaled, id.joint_sigma_nm);
+    println!(
+        "condition number {:.3e}, scaled {:.3e}; per-joint sigma {:?}",
+        id.condition_number, id.condition_number_scaled, id.joint_sigma_nm
+    );
 }

@@ -305,7 +305,12 @@ fn log_refs(logs: &[Samples]) -> Vec<LogRef> {
 
 /// Prints a per-joint table.
 fn print_table(title: &str, joint_names: &[String], rows: &[(String, Vec<f64>, Vec<f64>, usize)]) {
-    let lw = rows.iter().map(|r| r.0.len()).chain([18]).max().unwrap_or(18);
+    let lw = rows
+        .iter()
+        .map(|r| r.0.len())
+        .chain([18])
+        .max()
+        .unwrap_or(18);
     let w: Vec<usize> = joint_names.iter().map(|n| n.len().max(9)).collect();
     println!("{title}");
     print!("{:<lw$} {:>7}", "data", "samples");
