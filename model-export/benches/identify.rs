@@ -24,9 +24,9 @@ fn simulate(m: &RobotBaseModel, n: usize) -> Samples {
         path: PathBuf::from("bench"),
         sha256: String::new(),
         time_s: (0..n).map(|k| k as f64 * 0.01).collect(),
-        q_rad: vec![Vec::with_capacity(n); 6],
-        qd_rad_s: vec![Vec::with_capacity(n); 6],
-        qdd_rad_s2: vec![Vec::with_capacity(n); 6],
+        q_rad: (0..6).map(|_| Vec::with_capacity(n)).collect(),
+        qd_rad_s: (0..6).map(|_| Vec::with_capacity(n)).collect(),
+        qdd_rad_s2: (0..6).map(|_| Vec::with_capacity(n)).collect(),
         torque_nm: None,
     };
     for j in 0..6 {

@@ -1,6 +1,7 @@
 //! Identification end to end: simulated logs of a UR-type 6R arm (torque = regressor ×
 //! true parameters) written as CSV, identified through the library and through the
 //! `model-export identify` binary; bad inputs through the binary.
+#![allow(clippy::needless_range_loop)]
 
 use model_export::base::BaseParameters;
 use model_export::identify::commands::{
@@ -90,7 +91,7 @@ fn simulate(m: &RobotBaseModel, samples: usize, seed: u64, noise_nm: Option<&[f6
 #[test]
 fn six_dof_noise_free_recovers_base_parameters_to_1e_6() {
     let m = robot_model();
-    assert_eq!(m.base.count() + 0, m.parameter_names().len());
+    assert_eq!(m.base.count(), m.parameter_names().len());
     let logs = [simulate(&m, 4000, 1, None)];
     let beta = true_beta(&m);
     let scale = beta.amax();

@@ -223,7 +223,7 @@ impl FirmwareModel {
 
     /// Predictions for every sample of a log: `out[joint][sample]`.
     pub fn predict(&self, joints: &[usize], s: &Samples) -> Vec<Vec<f64>> {
-        let mut out = vec![Vec::with_capacity(s.len()); joints.len()];
+        let mut out: Vec<Vec<f64>> = joints.iter().map(|_| Vec::with_capacity(s.len())).collect();
         for (q, qd, qdd) in pipeline::states(s, joints, 0, s.len()) {
             for (r, t) in self.torques(&q, &qd, &qdd).into_iter().enumerate() {
                 out[r].push(t);
@@ -435,7 +435,7 @@ pub fn identify(a: &IdentifyArgs) -> anyhow::Result<()> {
     let _ = all_id;
     // f32 evaluation vs f64: the f32 model must agree to single-precision accuracy.
     let tol = 1e-3 * max_tau.max(1.0);
-    if !(max_diff <= tol) {
+    if max_diff.is_nan() || max_diff > tol {
         bail!(
             "firmware f32 model and f64 regressor disagree by {max_diff:.3e} N·m (limit {tol:.3e}); not writing {}",
             a.output.display()

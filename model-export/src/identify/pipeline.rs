@@ -72,7 +72,7 @@ pub fn accumulate(model: &dyn LinearModel, logs: &[Samples]) -> NormalEquations 
 pub fn predict(model: &dyn LinearModel, theta: &DVector<f64>, s: &Samples) -> Vec<Vec<f64>> {
     let joints = model.modelled_log_joints();
     let n = joints.len();
-    let mut out = vec![Vec::with_capacity(s.len()); n];
+    let mut out: Vec<Vec<f64>> = (0..n).map(|_| Vec::with_capacity(s.len())).collect();
     let mut k0 = 0;
     while k0 < s.len() {
         let k1 = (k0 + STATE_BLOCK).min(s.len());
