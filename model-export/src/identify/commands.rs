@@ -8,7 +8,7 @@ use crate::logs::args::{LayoutArgs, PreprocessArgs};
 use crate::logs::{LogLayout, PreprocessOptions, Samples, preprocess, read_log, sha256_file};
 use crate::model_file::{
     BaseParameter, ErrorReport, JointFriction, LockedJoint, LogRef, MODEL_SCHEMA_VERSION,
-    ModelFile, RobotRef, write_atomic,
+    ModelFile, ModelTermsRef, RobotRef, write_atomic,
 };
 use crate::robot::{JointMode, Robot};
 use anyhow::{Context, bail};
@@ -95,7 +95,7 @@ pub struct TorqueArgs {
     /// the measured torque per modelled joint when the input has effort columns.
     #[arg(long, short)]
     pub output: PathBuf,
-    /// Joint selection (ignored with --model: the model file's selection is used).
+    /// Joint selection and model terms (ignored with --model: the model file's are used).
     #[command(flatten)]
     pub joints: JointArgs,
     /// Log columns.
@@ -501,6 +501,14 @@ pub fn identify(a: &IdentifyArgs) -> anyhow::Result<()> {
         },
         modelled_joints: joint_names.clone(),
         locked_joints,
+        model_terms: ModelTermsRef {
+            viscous_friction: model.robot.terms.viscous_friction,
+            coulomb_friction: model.robot.terms.coulomb_friction,
+            friction_offset: model.robot.terms.friction_offset,
+            coulomb_smoothing_rad_s: model.robot.terms.coulomb_smoothing_rad_s,
+            rotor_inertia: model.robot.terms.rotor_inertia,
+        },
+        base_seed: BASE_SEED,
         drive_gains_nm_per_a,
         base_parameters,
         friction,
@@ -576,9 +584,22 @@ pub fn torque(a: &TorqueArgs) -> anyhow::Result<()> {
                     file.robot.sha256
                 );
             }
-            let mut j = a.joints.clone();
-            j.lock = Vec::new();
-            let mut robot = load_robot(&a.robot, &j)?;
+            // Joint selection and model terms come from the model file.
+            let mut robot = Robot::load(&a.robot)?;
+            robot.model_all_joints();
+            let t = &file.model_terms;
+            robot.terms.viscous_friction = t.viscous_friction;
+            robot.terms.coulomb_friction = t.coulomb_friction;
+            robot.terms.friction_offset = t.friction_offset;
+            robot.terms.coulomb_smoothing_rad_s = t.coulomb_smoothing_rad_s;
+            robot.terms.rotor_inertia = t.rotor_inertia;
+            if file.base_seed != BASE_SEED {
+                bail!(
+                    "{}, field base_seed: {} (this build computes base parameters with seed {BASE_SEED})",
+                    mp.display(),
+                    file.base_seed
+                );
+            }
             for l in &file.locked_joints {
                 let i = robot
                     .joints
