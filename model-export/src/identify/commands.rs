@@ -345,7 +345,7 @@ pub fn identify(a: &IdentifyArgs) -> anyhow::Result<()> {
     let robot_hash =
         sha256_file(&a.robot).with_context(|| format!("{}: cannot read", a.robot.display()))?;
     let layout = a.layout.layout()?;
-    let pre = a.pre.options();
+    let pre = a.pre.options()?;
     let id_logs = load_logs(&a.logs, &layout, &pre, robot.dof())?;
     let val_logs = load_logs(&a.validation, &layout, &pre, robot.dof())?;
     for s in id_logs.iter() {
@@ -565,7 +565,7 @@ pub fn identify(a: &IdentifyArgs) -> anyhow::Result<()> {
 /// Runs `torque`.
 pub fn torque(a: &TorqueArgs) -> anyhow::Result<()> {
     let layout = a.layout.layout()?;
-    let pre = a.pre.options();
+    let pre = a.pre.options()?;
     let (robot, theta) = match &a.model {
         None => {
             let robot = load_robot(&a.robot, &a.joints)?;

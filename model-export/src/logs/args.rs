@@ -164,7 +164,7 @@ pub struct PreprocessArgs {
     pub trim_rest_rad_s: f64,
     /// Kalman-filter the motor current (random-walk model): process and measurement
     /// variance [A²], e.g. `1e-4,1e-2`.
-    #[arg(long, value_name = "Q,R", value_delimiter = ',', num_args = 2)]
+    #[arg(long, value_name = "Q,R", value_delimiter = ',')]
     pub kalman_current: Option<Vec<f64>>,
     /// Minimum samples per log after preprocessing.
     #[arg(long, default_value_t = 20)]
@@ -173,9 +173,14 @@ pub struct PreprocessArgs {
 
 impl PreprocessArgs {
     /// The options.
-    pub fn options(&self) -> PreprocessOptions {
+    pub fn options(&self) -> anyhow::Result<PreprocessOptions> {
         let pos = |x: f64| (x > 0.0).then_some(x);
-        PreprocessOptions {
+        if let Some(k) = &self.kalman_current
+            && (k.len() != 2 || !k.iter().all(|v| v.is_finite() && *v > 0.0))
+        {
+            anyhow::bail!("--kalman-current {k:?}: expected two positive variances Q,R [A²]");
+        }
+        Ok(PreprocessOptions {
             resample_hz: self.resample_hz,
             filter_order: self.filter_order,
             q_cutoff_hz: pos(self.q_cutoff_hz),
@@ -184,6 +189,6 @@ impl PreprocessArgs {
             trim_rest_rad_s: pos(self.trim_rest_rad_s),
             kalman_current: self.kalman_current.as_ref().map(|v| (v[0], v[1])),
             min_samples: self.min_samples,
-        }
+        })
     }
 }
