@@ -11,6 +11,10 @@
 //! The model: `tau = M(q) qdd + c(q, qd) + g(q) + fv*qd + fc*sgn(qd) + fo + Ia*qdd`
 //! `= Y(q, qd, qdd) * theta`.
 //!
+//! The functions panic when a vector's length differs from the number of modelled
+//! joints (or `theta` from the layout): a programming error, never a data error; input
+//! files are validated when the robot is loaded.
+//!
 //! API: [`regressor`] (one sample, `n_modelled x p`), [`stack_regressors`],
 //! [`rnea`], [`mass_matrix`], [`bias_forces`], [`friction_torques`],
 //! [`forward_kinematics`], [`full_joint_positions`].
