@@ -10,6 +10,7 @@
 pub mod bench;
 pub mod control;
 pub mod drivers;
+pub mod dynamics;
 pub mod golden;
 pub mod log;
 pub mod math;

@@ -87,6 +87,25 @@ pub fn host_dot() -> Vec<Record> {
         .collect()
 }
 
+/// The host's computation of the `dynamics` suite: one record per joint torque,
+/// function `tau<joint>`, index and input = the case number.
+pub fn host_dynamics() -> Vec<Record> {
+    let model = golden::dynamics_model();
+    let mut out = Vec::with_capacity(golden::DYNAMICS_CASES * golden::DYNAMICS_JOINTS);
+    for case in 0..golden::DYNAMICS_CASES {
+        let tau = golden::dynamics_output(&model, case);
+        for (j, t) in tau.iter().enumerate() {
+            out.push(Record::new(
+                &format!("tau{}", j + 1),
+                case,
+                case as u32,
+                t.to_bits(),
+            ));
+        }
+    }
+    out
+}
+
 /// Outcome of comparing one suite.
 #[derive(Debug)]
 pub struct SuiteCheck {
@@ -99,7 +118,11 @@ pub struct SuiteCheck {
 /// Compares every suite of a QEMU report with the host's computation.
 pub fn check_report(report: &str) -> Result<Vec<SuiteCheck>> {
     let suites = parse_report(report)?;
-    let host: [(&'static str, Vec<Record>); 2] = [("math", host_math()), ("dot", host_dot())];
+    let host: [(&'static str, Vec<Record>); 3] = [
+        ("math", host_math()),
+        ("dot", host_dot()),
+        ("dynamics", host_dynamics()),
+    ];
     let mut checks = Vec::new();
     for (name, host_records) in host {
         let Some(suite) = suites.iter().find(|s| s.name == name) else {

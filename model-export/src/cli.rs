@@ -30,6 +30,15 @@ pub enum Command {
         #[arg(long, default_value_t = 7)]
         seed: u64,
     },
+    /// Identify a robot's base parameters (rigid body + friction) from logs by least
+    /// squares; write the model JSON and print per-joint RMS errors.
+    ///
+    /// Example (UR10e data): model-export identify --robot ur10e.urdf --log a.csv
+    /// --log b.csv --validate c.csv -o ur10e-model.json
+    Identify(Box<crate::identify::commands::IdentifyArgs>),
+    /// Predict joint torques for a log or a CSV of states with the robot's nominal
+    /// parameters or an identified model (firmware f32 model); write them as CSV.
+    Torque(Box<crate::identify::commands::TorqueArgs>),
 }
 
 /// Runs one parsed command line.
@@ -50,6 +59,8 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
             Ok(())
         }
         Command::Sil { seconds, seed } => run_sil(seconds, seed),
+        Command::Identify(a) => crate::identify::commands::identify(&a),
+        Command::Torque(a) => crate::identify::commands::torque(&a),
     }
 }
 
