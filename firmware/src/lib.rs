@@ -9,4 +9,5 @@
 
 pub mod golden;
 pub mod log;
+pub mod lstm;
 pub mod math;

@@ -1,6 +1,7 @@
 //! Host side of the joint feedforward: everything from robot description and logs
 //! to the fixed-size arrays the firmware compiles in.
-#![forbid(unsafe_code)]
+#![deny(unsafe_code)] // one exception: nn::gemm (a checked wrapper around sgemm)
 #![warn(missing_docs)]
 
 pub mod cli;
+pub mod nn;
