@@ -202,7 +202,10 @@ mod tests {
         for f in MathFn::ALL {
             let (lo, hi) = f.range();
             assert_eq!(f.input(0), lo);
-            assert_eq!(f.input(MATH_POINTS - 1 - (MATH_POINTS - 1) % 2), f.input(9998));
+            assert_eq!(
+                f.input(MATH_POINTS - 1 - (MATH_POINTS - 1) % 2),
+                f.input(9998)
+            );
             for i in 0..MATH_POINTS {
                 let x = f.input(i);
                 assert!(x >= lo && x <= hi, "{} {i} {x}", f.name());

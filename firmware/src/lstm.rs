@@ -61,7 +61,11 @@ pub struct ShapeError {
 
 impl core::fmt::Display for ShapeError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        write!(f, "{}: expected {} values, got {}", self.field, self.expected, self.actual)
+        write!(
+            f,
+            "{}: expected {} values, got {}",
+            self.field, self.expected, self.actual
+        )
     }
 }
 
@@ -104,7 +108,10 @@ pub struct LstmState<const H: usize> {
 impl<const H: usize> LstmState<H> {
     /// The zero state a sequence starts from.
     pub const fn new() -> Self {
-        LstmState { h: [0.0; H], c: [0.0; H] }
+        LstmState {
+            h: [0.0; H],
+            c: [0.0; H],
+        }
     }
 
     /// Forgets the past: back to the zero state.
@@ -121,7 +128,12 @@ impl<const H: usize> Default for LstmState<H> {
 
 impl<const I: usize, const E: usize, const H: usize, const O: usize> Lstm<I, E, H, O> {
     /// Sizes of this network.
-    pub const DIMS: LstmDims = LstmDims { input: I, embed: E, hidden: H, output: O };
+    pub const DIMS: LstmDims = LstmDims {
+        input: I,
+        embed: E,
+        hidden: H,
+        output: O,
+    };
 
     /// The network as a shape-erased view of its own arrays (no copy).
     pub fn view(&self) -> LstmView<'_> {
@@ -146,7 +158,14 @@ impl<const I: usize, const E: usize, const H: usize, const O: usize> Lstm<I, E, 
         let mut embed = [0.0f32; E];
         let mut h_new = [0.0f32; H];
         let mut out = [0.0f32; O];
-        self.view().step_unchecked(&mut state.h, &mut state.c, &mut embed, &mut h_new, input, &mut out);
+        self.view().step_unchecked(
+            &mut state.h,
+            &mut state.c,
+            &mut embed,
+            &mut h_new,
+            input,
+            &mut out,
+        );
         out
     }
 }
@@ -183,7 +202,12 @@ pub struct LstmView<'a> {
 impl<'a> LstmView<'a> {
     /// Checks that every array has the length `dims` asks for.
     pub fn check(&self) -> Result<(), ShapeError> {
-        let LstmDims { input: i, embed: e, hidden: h, output: o } = self.dims;
+        let LstmDims {
+            input: i,
+            embed: e,
+            hidden: h,
+            output: o,
+        } = self.dims;
         let fields: [(&'static str, usize, usize); 11] = [
             ("input_mean", i, self.input_mean.len()),
             ("input_std", i, self.input_std.len()),
@@ -199,7 +223,11 @@ impl<'a> LstmView<'a> {
         ];
         for (field, expected, actual) in fields {
             if expected != actual {
-                return Err(ShapeError { field, expected, actual });
+                return Err(ShapeError {
+                    field,
+                    expected,
+                    actual,
+                });
             }
         }
         Ok(())
@@ -229,7 +257,11 @@ impl<'a> LstmView<'a> {
         ];
         for (field, expected, actual) in lens {
             if expected != actual {
-                return Err(ShapeError { field, expected, actual });
+                return Err(ShapeError {
+                    field,
+                    expected,
+                    actual,
+                });
             }
         }
         self.step_unchecked(h, c, embed_scratch, h_scratch, input, out);
@@ -249,9 +281,18 @@ impl<'a> LstmView<'a> {
     ) {
         let d = self.dims;
         // Input layer on the normalised input; normalisation fused into the row loop.
-        for ((e, row), b) in embed.iter_mut().zip(self.w_in.chunks_exact(d.input.max(1))).zip(self.b_in) {
+        for ((e, row), b) in embed
+            .iter_mut()
+            .zip(self.w_in.chunks_exact(d.input.max(1)))
+            .zip(self.b_in)
+        {
             let mut acc = 0.0f32;
-            for (((w, x), m), s) in row.iter().zip(input).zip(self.input_mean).zip(self.input_std) {
+            for (((w, x), m), s) in row
+                .iter()
+                .zip(input)
+                .zip(self.input_mean)
+                .zip(self.input_std)
+            {
                 acc += w * ((x - m) / s);
             }
             *e = math::tanh(acc + b);
@@ -262,7 +303,9 @@ impl<'a> LstmView<'a> {
         for (j, (hn, cj)) in h_new.iter_mut().zip(c.iter_mut()).enumerate() {
             let mut pre = [0.0f32; 4];
             for (g, p) in pre.iter_mut().enumerate() {
-                *p = self.b_gates[g * d.hidden + j] + dot(gate_ih(g, j), embed) + dot(gate_hh(g, j), h);
+                *p = self.b_gates[g * d.hidden + j]
+                    + dot(gate_ih(g, j), embed)
+                    + dot(gate_hh(g, j), h);
             }
             let i = math::sigmoid(pre[0]);
             let f = math::sigmoid(pre[1]);
@@ -274,7 +317,13 @@ impl<'a> LstmView<'a> {
         h.copy_from_slice(h_new);
         // Output layer, de-normalised.
         let rows = self.w_out.chunks_exact(d.hidden.max(1));
-        for ((((y, row), b), m), s) in out.iter_mut().zip(rows).zip(self.b_out).zip(self.output_mean).zip(self.output_std) {
+        for ((((y, row), b), m), s) in out
+            .iter_mut()
+            .zip(rows)
+            .zip(self.b_out)
+            .zip(self.output_mean)
+            .zip(self.output_std)
+        {
             *y = (dot(row, h) + b) * s + m;
         }
     }
@@ -308,7 +357,8 @@ mod tests {
             let x = golden::lstm_input(t);
             let y = net.step(&mut fixed, &x);
             let mut y2 = [0.0f32; golden::LSTM_O];
-            view.step(&mut h, &mut c, &mut e, &mut hn, &x, &mut y2).unwrap();
+            view.step(&mut h, &mut c, &mut e, &mut hn, &x, &mut y2)
+                .unwrap();
             assert_eq!(y.map(f32::to_bits), y2.map(f32::to_bits), "step {t}");
         }
     }
@@ -373,7 +423,16 @@ mod tests {
         let (mut h, mut c) = ([0.0f32; golden::LSTM_H], [0.0f32; golden::LSTM_H]);
         let (mut e, mut hn) = ([0.0f32; golden::LSTM_E], [0.0f32; golden::LSTM_H]);
         let mut y = [0.0f32; golden::LSTM_O + 1];
-        let err = view.step(&mut h, &mut c, &mut e, &mut hn, &[0.0; golden::LSTM_I], &mut y).unwrap_err();
+        let err = view
+            .step(
+                &mut h,
+                &mut c,
+                &mut e,
+                &mut hn,
+                &[0.0; golden::LSTM_I],
+                &mut y,
+            )
+            .unwrap_err();
         assert_eq!(err.field, "out");
     }
 }

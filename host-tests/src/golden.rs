@@ -25,14 +25,19 @@ pub fn parse_report(text: &str) -> Result<Vec<Suite>> {
             None => {}
             Some("@suite") => {
                 let name = words.next().unwrap_or_default().to_string();
-                current = Some(Suite { name, records: Vec::new() });
+                current = Some(Suite {
+                    name,
+                    records: Vec::new(),
+                });
             }
             Some("@end") => match current.take() {
                 Some(s) => suites.push(s),
                 None => bail!("report line {line_no}: @end without @suite"),
             },
             Some("@pass") => passed = true,
-            Some(word) if word.starts_with('@') => bail!("report line {line_no}: target reported `{line}`"),
+            Some(word) if word.starts_with('@') => {
+                bail!("report line {line_no}: target reported `{line}`")
+            }
             Some(func) => {
                 let Some(suite) = current.as_mut() else {
                     bail!("report line {line_no}: record outside a suite: `{line}`");
@@ -87,7 +92,12 @@ pub fn host_lstm() -> Vec<Record> {
     let mut out = Vec::with_capacity(golden::LSTM_STEPS * golden::LSTM_O);
     golden::lstm_stream(|t, y| {
         for (k, v) in y.iter().enumerate() {
-            out.push(Record::new("lstm", t * golden::LSTM_O + k, t as u32, v.to_bits()));
+            out.push(Record::new(
+                "lstm",
+                t * golden::LSTM_O + k,
+                t as u32,
+                v.to_bits(),
+            ));
         }
     });
     out
@@ -105,14 +115,20 @@ pub struct SuiteCheck {
 /// Compares every suite of a QEMU report with the host's computation.
 pub fn check_report(report: &str) -> Result<Vec<SuiteCheck>> {
     let suites = parse_report(report)?;
-    let host: [(&'static str, Vec<Record>); 3] =
-        [("math", host_math()), ("dot", host_dot()), ("lstm", host_lstm())];
+    let host: [(&'static str, Vec<Record>); 3] = [
+        ("math", host_math()),
+        ("dot", host_dot()),
+        ("lstm", host_lstm()),
+    ];
     let mut checks = Vec::new();
     for (name, host_records) in host {
         let Some(suite) = suites.iter().find(|s| s.name == name) else {
             bail!("the QEMU report has no `{name}` suite");
         };
-        checks.push(SuiteCheck { name, result: crate::compare::compare(&suite.records, &host_records) });
+        checks.push(SuiteCheck {
+            name,
+            result: crate::compare::compare(&suite.records, &host_records),
+        });
     }
     Ok(checks)
 }

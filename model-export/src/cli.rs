@@ -163,7 +163,10 @@ pub struct ImportArgs {
 }
 
 fn load(paths: &[PathBuf], spec: &FeatureSpec) -> Result<Vec<Sequence>> {
-    paths.iter().map(|p| spec.sequence(&Table::read(p)?)).collect()
+    paths
+        .iter()
+        .map(|p| spec.sequence(&Table::read(p)?))
+        .collect()
 }
 
 fn train_cmd(a: TrainArgs) -> Result<()> {
@@ -198,16 +201,40 @@ fn train_cmd(a: TrainArgs) -> Result<()> {
         targets: tr.iter().flat_map(|s| s.targets.clone()).collect(),
         ..Default::default()
     };
-    let init = train::new_model(&all_train, spec.inputs.clone(), spec.output_names(), &spec.preset, &cfg)?;
-    let (model, hist) = train::train(&init, &tr.iter().collect::<Vec<_>>(), &va.iter().collect::<Vec<_>>(), &cfg)?;
+    let init = train::new_model(
+        &all_train,
+        spec.inputs.clone(),
+        spec.output_names(),
+        &spec.preset,
+        &cfg,
+    )?;
+    let (model, hist) = train::train(
+        &init,
+        &tr.iter().collect::<Vec<_>>(),
+        &va.iter().collect::<Vec<_>>(),
+        &cfg,
+    )?;
     io::write_model(&model, &a.out)?;
     plot::loss_curve(&hist, &a.loss_plot)?;
-    println!("learning rate {} (trials: {:?}); best epoch {} of {}", hist.lr, hist.lr_trials, hist.best_epoch + 1, hist.train.len());
+    println!(
+        "learning rate {} (trials: {:?}); best epoch {} of {}",
+        hist.lr,
+        hist.lr_trials,
+        hist.best_epoch + 1,
+        hist.train.len()
+    );
     let mut reports = Vec::new();
     for (p, t) in a.data.iter().zip(&te) {
         let rows = eval::evaluate(&model, t)?;
-        println!("\n{} (test block, {} steps, streamed):\n{}", p.display(), t.len(), eval::markdown(&rows));
-        reports.push(serde_json::json!({"file": p.display().to_string(), "steps": t.len(), "outputs": rows}));
+        println!(
+            "\n{} (test block, {} steps, streamed):\n{}",
+            p.display(),
+            t.len(),
+            eval::markdown(&rows)
+        );
+        reports.push(
+            serde_json::json!({"file": p.display().to_string(), "steps": t.len(), "outputs": rows}),
+        );
     }
     println!("wrote {} and {}", a.out.display(), a.loss_plot.display());
     if let Some(r) = a.report {
@@ -221,15 +248,29 @@ fn train_cmd(a: TrainArgs) -> Result<()> {
 fn evaluate_cmd(a: EvaluateArgs) -> Result<()> {
     let spec = a.features.spec()?;
     let model = io::read_model(&a.model)?;
-    spec.check_model(&model).with_context(|| format!("{}", a.model.display()))?;
+    spec.check_model(&model)
+        .with_context(|| format!("{}", a.model.display()))?;
     let mut reports = Vec::new();
     for (p, s) in a.data.iter().zip(load(&a.data, &spec)?) {
         let rows = eval::evaluate(&model, &s)?;
-        println!("{} ({} steps, streamed):\n{}", p.display(), s.len(), eval::markdown(&rows));
-        reports.push(serde_json::json!({"file": p.display().to_string(), "steps": s.len(), "outputs": rows}));
+        println!(
+            "{} ({} steps, streamed):\n{}",
+            p.display(),
+            s.len(),
+            eval::markdown(&rows)
+        );
+        reports.push(
+            serde_json::json!({"file": p.display().to_string(), "steps": s.len(), "outputs": rows}),
+        );
     }
     if let Some(r) = a.report {
-        crate::nn::write_atomic(&r, serde_json::to_string_pretty(&serde_json::json!({"preset": spec.preset, "data": reports}))?.as_bytes())?;
+        crate::nn::write_atomic(
+            &r,
+            serde_json::to_string_pretty(
+                &serde_json::json!({"preset": spec.preset, "data": reports}),
+            )?
+            .as_bytes(),
+        )?;
     }
     Ok(())
 }
@@ -238,13 +279,21 @@ fn evaluate_cmd(a: EvaluateArgs) -> Result<()> {
 /// `y*` outputs); returns the largest error relative to the reference outputs' RMS.
 pub fn check_reference(model: &crate::nn::LstmModel, reference: &std::path::Path) -> Result<f64> {
     let t = Table::read(reference)?;
-    let xs: Vec<&[f32]> = (0..model.dims.input).map(|k| t.column(&format!("x{k}"))).collect::<Result<_>>()?;
-    let ys: Vec<&[f32]> = (0..model.dims.output).map(|k| t.column(&format!("y{k}"))).collect::<Result<_>>()?;
-    let inputs: Vec<Vec<f32>> = (0..t.len()).map(|r| xs.iter().map(|c| c[r]).collect()).collect();
+    let xs: Vec<&[f32]> = (0..model.dims.input)
+        .map(|k| t.column(&format!("x{k}")))
+        .collect::<Result<_>>()?;
+    let ys: Vec<&[f32]> = (0..model.dims.output)
+        .map(|k| t.column(&format!("y{k}")))
+        .collect::<Result<_>>()?;
+    let inputs: Vec<Vec<f32>> = (0..t.len())
+        .map(|r| xs.iter().map(|c| c[r]).collect())
+        .collect();
     let out = model.stream(&inputs)?;
     let mut worst = 0.0f64;
     for (k, y) in ys.iter().enumerate() {
-        let rms = (y.iter().map(|v| (*v as f64).powi(2)).sum::<f64>() / y.len().max(1) as f64).sqrt().max(1e-12);
+        let rms = (y.iter().map(|v| (*v as f64).powi(2)).sum::<f64>() / y.len().max(1) as f64)
+            .sqrt()
+            .max(1e-12);
         for (r, v) in y.iter().enumerate() {
             worst = worst.max((out[r][k] as f64 - *v as f64).abs() / rms);
         }
@@ -254,12 +303,24 @@ pub fn check_reference(model: &crate::nn::LstmModel, reference: &std::path::Path
 
 fn import_cmd(a: ImportArgs) -> Result<()> {
     let model = io::read_model(&a.torch)?;
-    println!("{}: {:?}, preset `{}`", a.torch.display(), model.dims, model.preset);
+    println!(
+        "{}: {:?}, preset `{}`",
+        a.torch.display(),
+        model.dims,
+        model.preset
+    );
     if let Some(r) = &a.reference {
         let err = check_reference(&model, r)?;
-        println!("firmware f32 step vs {}: max error {err:.3e} of the output RMS", r.display());
+        println!(
+            "firmware f32 step vs {}: max error {err:.3e} of the output RMS",
+            r.display()
+        );
         if err > a.tolerance {
-            bail!("{}: the imported model differs from the reference by {err:.3e} > {}", r.display(), a.tolerance);
+            bail!(
+                "{}: the imported model differs from the reference by {err:.3e} > {}",
+                r.display(),
+                a.tolerance
+            );
         }
     }
     io::write_model(&model, &a.out)?;

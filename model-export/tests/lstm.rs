@@ -15,20 +15,42 @@ fn fixtures() -> PathBuf {
 
 /// A paper-size model with non-trivial normalisation, and a 1000-step input sequence.
 fn paper_model() -> (LstmModel, Vec<Vec<f32>>) {
-    let mut m = LstmModel::init(LstmDims { input: 9, embed: 64, hidden: 64, output: 3 }, 7);
+    let mut m = LstmModel::init(
+        LstmDims {
+            input: 9,
+            embed: 64,
+            hidden: 64,
+            output: 3,
+        },
+        7,
+    );
     m.input_mean = (0..9).map(|k| k as f32 * 0.3 - 1.0).collect();
     m.input_std = (0..9).map(|k| 0.5 + k as f32 * 0.2).collect();
     m.output_mean = vec![2.0, -1.0, 0.5];
     m.output_std = vec![3.0, 0.5, 1.5];
     let xs = (0..1000)
-        .map(|t| (0..9).map(|k| 2.0 * (t as f32 * 0.017 * (k + 1) as f32).sin() + ((t * 7 + k * 13) % 11) as f32 * 0.1).collect())
+        .map(|t| {
+            (0..9)
+                .map(|k| {
+                    2.0 * (t as f32 * 0.017 * (k + 1) as f32).sin()
+                        + ((t * 7 + k * 13) % 11) as f32 * 0.1
+                })
+                .collect()
+        })
         .collect();
     (m, xs)
 }
 
 fn max_rel(a: &[Vec<f32>], b: &[Vec<f32>]) -> f64 {
-    let rms = (b.iter().flatten().map(|v| (*v as f64).powi(2)).sum::<f64>() / b.iter().flatten().count() as f64).sqrt();
-    a.iter().flatten().zip(b.iter().flatten()).map(|(x, y)| (*x as f64 - *y as f64).abs()).fold(0.0, f64::max) / rms
+    let rms = (b.iter().flatten().map(|v| (*v as f64).powi(2)).sum::<f64>()
+        / b.iter().flatten().count() as f64)
+        .sqrt();
+    a.iter()
+        .flatten()
+        .zip(b.iter().flatten())
+        .map(|(x, y)| (*x as f64 - *y as f64).abs())
+        .fold(0.0, f64::max)
+        / rms
 }
 
 #[test]
@@ -36,9 +58,19 @@ fn firmware_stream_matches_the_candle_forward_over_1000_steps() {
     let (m, xs) = paper_model();
     let dev = Device::Cpu;
     let net = Net::from_model(&m, &dev).unwrap();
-    let y = net.forward(&normalised_sequence(&m, &xs, &dev).unwrap()).unwrap();
+    let y = net
+        .forward(&normalised_sequence(&m, &xs, &dev).unwrap())
+        .unwrap();
     let y: Vec<Vec<f32>> = y.squeeze(0).unwrap().to_vec2().unwrap();
-    let candle: Vec<Vec<f32>> = y.iter().map(|r| r.iter().enumerate().map(|(k, v)| v * m.output_std[k] + m.output_mean[k]).collect()).collect();
+    let candle: Vec<Vec<f32>> = y
+        .iter()
+        .map(|r| {
+            r.iter()
+                .enumerate()
+                .map(|(k, v)| v * m.output_std[k] + m.output_mean[k])
+                .collect()
+        })
+        .collect();
     let fw = m.stream(&xs).unwrap();
     let err = max_rel(&fw, &candle);
     println!("firmware vs candle over 1000 steps: max error {err:.2e} of the output RMS");
@@ -60,8 +92,17 @@ fn a_reset_mid_sequence_equals_a_fresh_start() {
 #[test]
 fn a_pytorch_model_imports_and_matches_its_reference() {
     let m = io::read_model(&fixtures().join("torch_lstm.safetensors")).unwrap();
-    assert_eq!(m.dims, LstmDims { input: 5, embed: 12, hidden: 16, output: 2 });
-    let err = model_export::cli::check_reference(&m, &fixtures().join("torch_reference.csv")).unwrap();
+    assert_eq!(
+        m.dims,
+        LstmDims {
+            input: 5,
+            embed: 12,
+            hidden: 16,
+            output: 2
+        }
+    );
+    let err =
+        model_export::cli::check_reference(&m, &fixtures().join("torch_reference.csv")).unwrap();
     println!("firmware f32 step vs PyTorch reference: max error {err:.2e} of the output RMS");
     assert!(err < 1e-5, "{err}");
     // Round trip through our writer is lossless.
@@ -77,17 +118,34 @@ fn edit_fixture(edit: impl Fn(&mut LstmModel)) -> Vec<u8> {
     let shapes = |n: &str, v: &Vec<f32>| -> Vec<usize> {
         match n {
             "input.weight" => vec![dims.embed, v.len() / dims.embed],
-            "lstm.weight_ih_l0" | "lstm.weight_hh_l0" => vec![4 * dims.hidden, v.len() / (4 * dims.hidden)],
+            "lstm.weight_ih_l0" | "lstm.weight_hh_l0" => {
+                vec![4 * dims.hidden, v.len() / (4 * dims.hidden)]
+            }
             "output.weight" => vec![dims.output, v.len() / dims.output],
             _ => vec![v.len()],
         }
     };
-    let bufs: Vec<(String, Vec<usize>, Vec<u8>)> =
-        m.tensors().iter().map(|(n, v)| (n.to_string(), shapes(n, v), v.iter().flat_map(|x| x.to_le_bytes()).collect())).collect();
+    let bufs: Vec<(String, Vec<usize>, Vec<u8>)> = m
+        .tensors()
+        .iter()
+        .map(|(n, v)| {
+            (
+                n.to_string(),
+                shapes(n, v),
+                v.iter().flat_map(|x| x.to_le_bytes()).collect(),
+            )
+        })
+        .collect();
     let views: Vec<(String, safetensors::tensor::TensorView)> = bufs
         .iter()
         .filter(|(n, _, b)| !(b.is_empty() && n == "lstm.bias_hh_l0"))
-        .map(|(n, s, b)| (n.clone(), safetensors::tensor::TensorView::new(safetensors::Dtype::F32, s.clone(), b).unwrap()))
+        .map(|(n, s, b)| {
+            (
+                n.clone(),
+                safetensors::tensor::TensorView::new(safetensors::Dtype::F32, s.clone(), b)
+                    .unwrap(),
+            )
+        })
         .collect();
     safetensors::serialize(views, None).unwrap()
 }
@@ -99,11 +157,20 @@ fn bad_safetensors_are_refused_with_the_tensor_named() {
     assert!(e.contains("missing tensor `lstm.bias_hh_l0`"), "{e}");
     let misshaped = edit_fixture(|m| m.w_hh.truncate(4 * 16 * 15));
     let e = format!("{:#}", io::parse_model(&misshaped).unwrap_err());
-    assert!(e.contains("lstm.weight_hh_l0") && e.contains("[64, 16]"), "{e}");
+    assert!(
+        e.contains("lstm.weight_hh_l0") && e.contains("[64, 16]"),
+        "{e}"
+    );
     let nan = edit_fixture(|m| m.w_ih[17] = f32::NAN);
     let e = format!("{:#}", io::parse_model(&nan).unwrap_err());
-    assert!(e.contains("lstm.weight_ih_l0") && e.contains("17") && e.contains("NaN"), "{e}");
-    let e = format!("{:#}", io::parse_model(b"not a safetensors file").unwrap_err());
+    assert!(
+        e.contains("lstm.weight_ih_l0") && e.contains("17") && e.contains("NaN"),
+        "{e}"
+    );
+    let e = format!(
+        "{:#}",
+        io::parse_model(b"not a safetensors file").unwrap_err()
+    );
     assert!(e.contains("not a safetensors file"), "{e}");
 
     // The CLI exits non-zero, names the file and writes nothing.
@@ -120,7 +187,10 @@ fn bad_safetensors_are_refused_with_the_tensor_named() {
         .unwrap();
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains("bad.safetensors") && err.contains("NaN"), "{err}");
+    assert!(
+        err.contains("bad.safetensors") && err.contains("NaN"),
+        "{err}"
+    );
     assert!(!out_path.exists());
 }
 
@@ -137,7 +207,11 @@ fn synthetic(n: usize, seed: u32) -> Table {
         cols[1].push(u2);
         cols[2].push(s + 0.2 * u1 * u1);
     }
-    Table { path: "synthetic".into(), names: vec!["u1".into(), "u2".into(), "y".into()], columns: cols }
+    Table {
+        path: "synthetic".into(),
+        names: vec!["u1".into(), "u2".into(), "y".into()],
+        columns: cols,
+    }
 }
 
 #[test]
@@ -159,13 +233,26 @@ fn training_learns_a_system_with_memory() {
         ..Default::default()
     };
     let (tr, va, te) = seq.split(cfg.val_fraction, cfg.test_fraction).unwrap();
-    let init = new_model(&tr, spec.inputs.clone(), spec.output_names(), "custom", &cfg).unwrap();
+    let init = new_model(
+        &tr,
+        spec.inputs.clone(),
+        spec.output_names(),
+        "custom",
+        &cfg,
+    )
+    .unwrap();
     let (m, h) = train(&init, &[&tr], &[&va], &cfg).unwrap();
     let before = eval::evaluate(&init, &te).unwrap()[0].rms_after;
     let after = eval::evaluate(&m, &te).unwrap()[0].rms_after;
     let std = model_export::nn::data::mean_std(&te.targets).1[0] as f64;
-    println!("val loss {:.4} -> {:.4}; streamed test RMS {before:.4} -> {after:.4} (target std {std:.4})", h.val[0], h.val[h.best_epoch]);
-    assert!(after < 0.15 * std, "streamed test RMS {after} vs target std {std}");
+    println!(
+        "val loss {:.4} -> {:.4}; streamed test RMS {before:.4} -> {after:.4} (target std {std:.4})",
+        h.val[0], h.val[h.best_epoch]
+    );
+    assert!(
+        after < 0.15 * std,
+        "streamed test RMS {after} vs target std {std}"
+    );
     assert!(h.val[h.best_epoch] < 0.3 * h.val[0]);
     // Same seed, same model.
     let (m2, _) = train(&init, &[&tr], &[&va], &cfg).unwrap();
@@ -175,8 +262,14 @@ fn training_learns_a_system_with_memory() {
 #[test]
 fn a_model_for_other_features_is_refused() {
     let m = io::read_model(&fixtures().join("torch_lstm.safetensors")).unwrap();
-    let e = FeatureSpec::paper(&[4, 5, 6]).check_model(&m).unwrap_err().to_string();
-    assert!(e.contains("do not match") && e.contains("tau_model_j4"), "{e}");
+    let e = FeatureSpec::paper(&[4, 5, 6])
+        .check_model(&m)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("do not match") && e.contains("tau_model_j4"),
+        "{e}"
+    );
 }
 
 #[test]
@@ -185,7 +278,9 @@ fn presets_align_inputs_and_targets() {
     let table = Table {
         path: "t".into(),
         names: names.iter().map(|s| s.to_string()).collect(),
-        columns: (0..4).map(|c| (0..5).map(|t| (10 * c + t) as f32).collect()).collect(),
+        columns: (0..4)
+            .map(|c| (0..5).map(|t| (10 * c + t) as f32).collect())
+            .collect(),
     };
     let p = FeatureSpec::paper(&[4]).sequence(&table).unwrap();
     assert_eq!(p.len(), 4);

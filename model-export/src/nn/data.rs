@@ -34,31 +34,55 @@ impl Table {
             .trim(csv::Trim::All)
             .from_path(path)
             .with_context(|| format!("opening {}", path.display()))?;
-        let names: Vec<String> = rdr.headers().with_context(|| format!("{}: header", path.display()))?.iter().map(String::from).collect();
+        let names: Vec<String> = rdr
+            .headers()
+            .with_context(|| format!("{}: header", path.display()))?
+            .iter()
+            .map(String::from)
+            .collect();
         let mut columns = vec![Vec::new(); names.len()];
         for (n, rec) in rdr.records().enumerate() {
             let line = n + 2;
             let rec = rec.with_context(|| format!("{}:{line}", path.display()))?;
             if rec.len() != names.len() {
-                bail!("{}:{line}: {} fields, the header has {}", path.display(), rec.len(), names.len());
+                bail!(
+                    "{}:{line}: {} fields, the header has {}",
+                    path.display(),
+                    rec.len(),
+                    names.len()
+                );
             }
             for (k, field) in rec.iter().enumerate() {
                 let v: f32 = field
                     .parse()
                     .ok()
                     .filter(|v: &f32| v.is_finite())
-                    .with_context(|| format!("{}:{line}: column `{}`: `{field}` is not a finite number", path.display(), names[k]))?;
+                    .with_context(|| {
+                        format!(
+                            "{}:{line}: column `{}`: `{field}` is not a finite number",
+                            path.display(),
+                            names[k]
+                        )
+                    })?;
                 columns[k].push(v);
             }
         }
-        Ok(Table { path: path.to_path_buf(), names, columns })
+        Ok(Table {
+            path: path.to_path_buf(),
+            names,
+            columns,
+        })
     }
 
     /// A column by name, or an error naming the file and what exists.
     pub fn column(&self, name: &str) -> Result<&[f32]> {
         match self.names.iter().position(|n| n == name) {
             Some(k) => Ok(&self.columns[k]),
-            None => bail!("{}: no column `{name}` (columns: {})", self.path.display(), self.names.join(", ")),
+            None => bail!(
+                "{}: no column `{name}` (columns: {})",
+                self.path.display(),
+                self.names.join(", ")
+            ),
         }
     }
 
@@ -94,7 +118,11 @@ impl TargetSpec {
             Some(m) => format!("{}-{m}", self.column),
             None => self.column.clone(),
         };
-        if self.shift > 0 { format!("{base}@+{}", self.shift) } else { base }
+        if self.shift > 0 {
+            format!("{base}@+{}", self.shift)
+        } else {
+            base
+        }
     }
 }
 
@@ -118,9 +146,18 @@ impl FeatureSpec {
         }
         let targets = joints
             .iter()
-            .map(|j| TargetSpec { column: format!("tau_meas_j{j}"), minus: None, shift: 1, model_only: Some(format!("tau_model_j{j}")) })
+            .map(|j| TargetSpec {
+                column: format!("tau_meas_j{j}"),
+                minus: None,
+                shift: 1,
+                model_only: Some(format!("tau_model_j{j}")),
+            })
             .collect();
-        FeatureSpec { preset: "paper".into(), inputs, targets }
+        FeatureSpec {
+            preset: "paper".into(),
+            inputs,
+            targets,
+        }
     }
 
     /// The `feedforward` preset for `joints` (see module docs).
@@ -131,9 +168,18 @@ impl FeatureSpec {
         }
         let targets = joints
             .iter()
-            .map(|j| TargetSpec { column: format!("tau_meas_j{j}"), minus: Some(format!("tau_model_j{j}")), shift: 0, model_only: None })
+            .map(|j| TargetSpec {
+                column: format!("tau_meas_j{j}"),
+                minus: Some(format!("tau_model_j{j}")),
+                shift: 0,
+                model_only: None,
+            })
             .collect();
-        FeatureSpec { preset: "feedforward".into(), inputs, targets }
+        FeatureSpec {
+            preset: "feedforward".into(),
+            inputs,
+            targets,
+        }
     }
 
     /// A `custom` spec: targets are `col` or `col-col`, all `shift` steps ahead.
@@ -148,10 +194,19 @@ impl FeatureSpec {
                     Some((a, b)) => (a.to_string(), Some(b.to_string())),
                     None => (t.clone(), None),
                 };
-                TargetSpec { column, minus, shift, model_only: None }
+                TargetSpec {
+                    column,
+                    minus,
+                    shift,
+                    model_only: None,
+                }
             })
             .collect();
-        Ok(FeatureSpec { preset: "custom".into(), inputs: inputs.to_vec(), targets })
+        Ok(FeatureSpec {
+            preset: "custom".into(),
+            inputs: inputs.to_vec(),
+            targets,
+        })
     }
 
     /// Output names as stored in the model.
@@ -181,12 +236,20 @@ impl FeatureSpec {
     pub fn sequence(&self, table: &Table) -> Result<Sequence> {
         let max_shift = self.targets.iter().map(|t| t.shift).max().unwrap_or(0);
         let n = table.len().saturating_sub(max_shift);
-        let ins: Vec<&[f32]> = self.inputs.iter().map(|c| table.column(c)).collect::<Result<_>>()?;
+        let ins: Vec<&[f32]> = self
+            .inputs
+            .iter()
+            .map(|c| table.column(c))
+            .collect::<Result<_>>()?;
         let mut tcols = Vec::new();
         for t in &self.targets {
             let a = table.column(&t.column)?;
             let b = t.minus.as_deref().map(|m| table.column(m)).transpose()?;
-            let mo = t.model_only.as_deref().map(|m| table.column(m)).transpose()?;
+            let mo = t
+                .model_only
+                .as_deref()
+                .map(|m| table.column(m))
+                .transpose()?;
             tcols.push((t.shift, a, b, mo));
         }
         let mut s = Sequence::default();
@@ -199,7 +262,11 @@ impl FeatureSpec {
                 let k = row + shift;
                 y.push(a[k] - b.map_or(0.0, |b| b[k]));
                 mo_row.push(mo.map_or(0.0, |m| m[k]));
-                pers.push(if *shift > 0 && b.is_none() { Some(a[row]) } else { None });
+                pers.push(if *shift > 0 && b.is_none() {
+                    Some(a[row])
+                } else {
+                    None
+                });
             }
             s.targets.push(y);
             s.model_only.push(mo_row);
@@ -244,15 +311,28 @@ impl Sequence {
     }
 
     /// Contiguous train / validation / test blocks, in time order, never shuffled.
-    pub fn split(&self, val_fraction: f64, test_fraction: f64) -> Result<(Sequence, Sequence, Sequence)> {
-        if !(0.0..1.0).contains(&val_fraction) || !(0.0..1.0).contains(&test_fraction) || val_fraction + test_fraction >= 1.0 {
-            bail!("validation ({val_fraction}) and test ({test_fraction}) fractions must be in [0, 1) and sum below 1");
+    pub fn split(
+        &self,
+        val_fraction: f64,
+        test_fraction: f64,
+    ) -> Result<(Sequence, Sequence, Sequence)> {
+        if !(0.0..1.0).contains(&val_fraction)
+            || !(0.0..1.0).contains(&test_fraction)
+            || val_fraction + test_fraction >= 1.0
+        {
+            bail!(
+                "validation ({val_fraction}) and test ({test_fraction}) fractions must be in [0, 1) and sum below 1"
+            );
         }
         let n = self.len();
         let n_test = (n as f64 * test_fraction).round() as usize;
         let n_val = (n as f64 * val_fraction).round() as usize;
         let n_train = n - n_test - n_val;
-        Ok((self.slice(0..n_train), self.slice(n_train..n_train + n_val), self.slice(n_train + n_val..n)))
+        Ok((
+            self.slice(0..n_train),
+            self.slice(n_train..n_train + n_val),
+            self.slice(n_train + n_val..n),
+        ))
     }
 }
 
@@ -273,6 +353,10 @@ pub fn mean_std(rows: &[Vec<f32>]) -> (Vec<f32>, Vec<f32>) {
             var[k] += (r[k] as f64 - mean[k]).powi(2) / n;
         }
     }
-    let std = var.iter().zip(&mean).map(|(v, m)| v.sqrt().max(1e-6 * m.abs()).max(1e-12) as f32).collect();
+    let std = var
+        .iter()
+        .zip(&mean)
+        .map(|(v, m)| v.sqrt().max(1e-6 * m.abs()).max(1e-12) as f32)
+        .collect();
     (mean.into_iter().map(|m| m as f32).collect(), std)
 }

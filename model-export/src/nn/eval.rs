@@ -20,6 +20,7 @@ pub struct TargetEval {
 }
 
 /// Streams `m` from the zero state over `seq` and compares with the baselines.
+#[allow(clippy::needless_range_loop)] // three parallel per-step tables indexed alike
 pub fn evaluate(m: &LstmModel, seq: &Sequence) -> Result<Vec<TargetEval>> {
     let pred = m.stream(&seq.inputs)?;
     let n = seq.len().max(1) as f64;
@@ -40,7 +41,11 @@ pub fn evaluate(m: &LstmModel, seq: &Sequence) -> Result<Vec<TargetEval>> {
             name: m.output_names[k].clone(),
             rms_before: rb,
             rms_after: ra,
-            reduction_pct: if rb > 0.0 { 100.0 * (1.0 - ra / rb) } else { 0.0 },
+            reduction_pct: if rb > 0.0 {
+                100.0 * (1.0 - ra / rb)
+            } else {
+                0.0
+            },
             rms_persistence: (p_ok && !seq.is_empty()).then(|| (p / n).sqrt()),
         });
     }
@@ -49,10 +54,17 @@ pub fn evaluate(m: &LstmModel, seq: &Sequence) -> Result<Vec<TargetEval>> {
 
 /// A Markdown table of the figures.
 pub fn markdown(rows: &[TargetEval]) -> String {
-    let mut s = String::from("| output | RMS before | RMS after | reduction % | RMS persistence |\n|---|---:|---:|---:|---:|\n");
+    let mut s = String::from(
+        "| output | RMS before | RMS after | reduction % | RMS persistence |\n|---|---:|---:|---:|---:|\n",
+    );
     for r in rows {
-        let p = r.rms_persistence.map_or("-".to_string(), |v| format!("{v:.4}"));
-        s += &format!("| {} | {:.4} | {:.4} | {:.1} | {} |\n", r.name, r.rms_before, r.rms_after, r.reduction_pct, p);
+        let p = r
+            .rms_persistence
+            .map_or("-".to_string(), |v| format!("{v:.4}"));
+        s += &format!(
+            "| {} | {:.4} | {:.4} | {:.1} | {} |\n",
+            r.name, r.rms_before, r.rms_after, r.reduction_pct, p
+        );
     }
     s
 }

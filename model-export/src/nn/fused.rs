@@ -30,11 +30,26 @@ fn contiguous<'a>(s: &'a CpuStorage, l: &Layout) -> Result<&'a [f32]> {
 
 /// Forward over a window. Returns hidden states `[B,T,H]`; with `tape`, also the gate
 /// activations `[B,T,4H]` and cell states `[B,T,H]` the backward pass needs.
-fn forward(gx: &[f32], w_hh: &[f32], b: usize, t_len: usize, h: usize, tape: bool) -> (Vec<f32>, Vec<f32>, Vec<f32>) {
+fn forward(
+    gx: &[f32],
+    w_hh: &[f32],
+    b: usize,
+    t_len: usize,
+    h: usize,
+    tape: bool,
+) -> (Vec<f32>, Vec<f32>, Vec<f32>) {
     let g4 = 4 * h;
     let mut hs = vec![0.0f32; b * t_len * h];
-    let mut acts = if tape { vec![0.0f32; b * t_len * g4] } else { Vec::new() };
-    let mut cs = if tape { vec![0.0f32; b * t_len * h] } else { Vec::new() };
+    let mut acts = if tape {
+        vec![0.0f32; b * t_len * g4]
+    } else {
+        Vec::new()
+    };
+    let mut cs = if tape {
+        vec![0.0f32; b * t_len * h]
+    } else {
+        Vec::new()
+    };
     let mut h_prev = vec![0.0f32; b * h];
     let mut c = vec![0.0f32; b * h];
     let mut gates = vec![0.0f32; b * g4];
@@ -72,7 +87,14 @@ fn forward(gx: &[f32], w_hh: &[f32], b: usize, t_len: usize, h: usize, tape: boo
 }
 
 /// Back-propagation through time. Returns `(d gx [B,T,4H], d W_hh [4H,H])`.
-fn backward(gx: &[f32], w_hh: &[f32], d_hs: &[f32], b: usize, t_len: usize, h: usize) -> (Vec<f32>, Vec<f32>) {
+fn backward(
+    gx: &[f32],
+    w_hh: &[f32],
+    d_hs: &[f32],
+    b: usize,
+    t_len: usize,
+    h: usize,
+) -> (Vec<f32>, Vec<f32>) {
     let g4 = 4 * h;
     let (hs, acts, cs) = forward(gx, w_hh, b, t_len, h, true);
     let mut d_gx = vec![0.0f32; b * t_len * g4];
@@ -106,11 +128,23 @@ fn backward(gx: &[f32], w_hh: &[f32], d_hs: &[f32], b: usize, t_len: usize, h: u
     let mut h_prev = vec![0.0f32; b * t_len * h];
     for bi in 0..b {
         for t in 1..t_len {
-            h_prev[(bi * t_len + t) * h..][..h].copy_from_slice(&hs[(bi * t_len + t - 1) * h..][..h]);
+            h_prev[(bi * t_len + t) * h..][..h]
+                .copy_from_slice(&hs[(bi * t_len + t - 1) * h..][..h]);
         }
     }
     let mut d_w = vec![0.0f32; g4 * h];
-    sgemm(g4, b * t_len, h, 1.0, &d_gx, Op::T, &h_prev, Op::N, 0.0, &mut d_w);
+    sgemm(
+        g4,
+        b * t_len,
+        h,
+        1.0,
+        &d_gx,
+        Op::T,
+        &h_prev,
+        Op::N,
+        0.0,
+        &mut d_w,
+    );
     (d_gx, d_w)
 }
 
@@ -118,7 +152,11 @@ fn dims(l_gx: &Layout, l_w: &Layout) -> Result<(usize, usize, usize)> {
     let (b, t_len, g4) = l_gx.shape().dims3()?;
     let (g4w, h) = l_w.shape().dims2()?;
     if g4 != 4 * h || g4w != g4 {
-        candle_core::bail!("fused LSTM: gx {:?} and w_hh {:?} do not match", l_gx.shape(), l_w.shape());
+        candle_core::bail!(
+            "fused LSTM: gx {:?} and w_hh {:?} do not match",
+            l_gx.shape(),
+            l_w.shape()
+        );
     }
     Ok((b, t_len, h))
 }
@@ -128,13 +166,25 @@ impl CustomOp2 for FusedLstm {
         "fused-lstm"
     }
 
-    fn cpu_fwd(&self, s1: &CpuStorage, l1: &Layout, s2: &CpuStorage, l2: &Layout) -> Result<(CpuStorage, Shape)> {
+    fn cpu_fwd(
+        &self,
+        s1: &CpuStorage,
+        l1: &Layout,
+        s2: &CpuStorage,
+        l2: &Layout,
+    ) -> Result<(CpuStorage, Shape)> {
         let (b, t_len, h) = dims(l1, l2)?;
         let (hs, _, _) = forward(contiguous(s1, l1)?, contiguous(s2, l2)?, b, t_len, h, false);
         Ok((CpuStorage::F32(hs), Shape::from((b, t_len, h))))
     }
 
-    fn bwd(&self, gx: &Tensor, w_hh: &Tensor, _res: &Tensor, grad: &Tensor) -> Result<(Option<Tensor>, Option<Tensor>)> {
+    fn bwd(
+        &self,
+        gx: &Tensor,
+        w_hh: &Tensor,
+        _res: &Tensor,
+        grad: &Tensor,
+    ) -> Result<(Option<Tensor>, Option<Tensor>)> {
         let (b, t_len, g4) = gx.dims3()?;
         let h = g4 / 4;
         let gx_v = gx.flatten_all()?.to_vec1::<f32>()?;
@@ -177,11 +227,17 @@ mod tests {
     fn forward_and_gradients_match_candle_autograd() -> Result<()> {
         let dev = Device::Cpu;
         let (b, t_len, h) = (3, 7, 5);
-        let gxv: Vec<f32> = (0..b * t_len * 4 * h).map(|i| (i as f32 * 0.731).sin() * 1.5).collect();
-        let wv: Vec<f32> = (0..4 * h * h).map(|i| (i as f32 * 0.377).cos() * 0.6).collect();
+        let gxv: Vec<f32> = (0..b * t_len * 4 * h)
+            .map(|i| (i as f32 * 0.731).sin() * 1.5)
+            .collect();
+        let wv: Vec<f32> = (0..4 * h * h)
+            .map(|i| (i as f32 * 0.377).cos() * 0.6)
+            .collect();
         let gx = Var::from_tensor(&Tensor::from_vec(gxv, (b, t_len, 4 * h), &dev)?)?;
         let w = Var::from_tensor(&Tensor::from_vec(wv, (4 * h, h), &dev)?)?;
-        let weights = Tensor::arange(0f32, (b * t_len * h) as f32, &dev)?.reshape((b, t_len, h))?.sin()?;
+        let weights = Tensor::arange(0f32, (b * t_len * h) as f32, &dev)?
+            .reshape((b, t_len, h))?
+            .sin()?;
         let ours = gx.as_tensor().apply_op2(w.as_tensor(), FusedLstm)?;
         let theirs = reference(gx.as_tensor(), w.as_tensor())?;
         let diff = (&ours - &theirs)?.abs()?.max_all()?.to_scalar::<f32>()?;
@@ -193,7 +249,10 @@ mod tests {
             let r = g2.get(v.as_tensor()).unwrap();
             let d = (a - r)?.abs()?.max_all()?.to_scalar::<f32>()?;
             let scale = r.abs()?.max_all()?.to_scalar::<f32>()?;
-            assert!(d <= 1e-5 * scale.max(1.0), "gradient differs by {d} (scale {scale})");
+            assert!(
+                d <= 1e-5 * scale.max(1.0),
+                "gradient differs by {d} (scale {scale})"
+            );
         }
         Ok(())
     }

@@ -17,8 +17,22 @@ pub enum Op {
 /// Panics if a slice is shorter than its shape needs (a programming error, checked
 /// before any unsafe access).
 #[allow(clippy::too_many_arguments)]
-pub fn sgemm(m: usize, k: usize, n: usize, alpha: f32, a: &[f32], ta: Op, b: &[f32], tb: Op, beta: f32, c: &mut [f32]) {
-    assert!(a.len() >= m * k && b.len() >= k * n && c.len() >= m * n, "sgemm: operand too short");
+pub fn sgemm(
+    m: usize,
+    k: usize,
+    n: usize,
+    alpha: f32,
+    a: &[f32],
+    ta: Op,
+    b: &[f32],
+    tb: Op,
+    beta: f32,
+    c: &mut [f32],
+) {
+    assert!(
+        a.len() >= m * k && b.len() >= k * n && c.len() >= m * n,
+        "sgemm: operand too short"
+    );
     if m == 0 || n == 0 {
         return;
     }
@@ -64,13 +78,26 @@ mod tests {
         let b: Vec<f32> = (0..k * n).map(|i| (i as f32 * 0.11).cos()).collect();
         for ta in [Op::N, Op::T] {
             for tb in [Op::N, Op::T] {
-                let at = |i: usize, p: usize| if ta == Op::N { a[i * k + p] } else { a[p * m + i] };
-                let bt = |p: usize, j: usize| if tb == Op::N { b[p * n + j] } else { b[j * k + p] };
+                let at = |i: usize, p: usize| {
+                    if ta == Op::N {
+                        a[i * k + p]
+                    } else {
+                        a[p * m + i]
+                    }
+                };
+                let bt = |p: usize, j: usize| {
+                    if tb == Op::N {
+                        b[p * n + j]
+                    } else {
+                        b[j * k + p]
+                    }
+                };
                 let mut c = vec![1.0f32; m * n];
                 sgemm(m, k, n, 2.0, &a, ta, &b, tb, 0.5, &mut c);
                 for i in 0..m {
                     for j in 0..n {
-                        let want: f32 = 2.0 * (0..k).map(|p| at(i, p) * bt(p, j)).sum::<f32>() + 0.5;
+                        let want: f32 =
+                            2.0 * (0..k).map(|p| at(i, p) * bt(p, j)).sum::<f32>() + 0.5;
                         assert!((c[i * n + j] - want).abs() < 1e-5, "{ta:?}{tb:?} {i} {j}");
                     }
                 }

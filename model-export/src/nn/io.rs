@@ -28,8 +28,14 @@ pub fn read_model(path: &Path) -> Result<LstmModel> {
 fn to_f32(name: &str, t: &TensorView) -> Result<Vec<f32>> {
     let d = t.data();
     Ok(match t.dtype() {
-        Dtype::F32 => d.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect(),
-        Dtype::F64 => d.chunks_exact(8).map(|b| f64::from_le_bytes(b.try_into().unwrap_or([0; 8])) as f32).collect(),
+        Dtype::F32 => d
+            .chunks_exact(4)
+            .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+            .collect(),
+        Dtype::F64 => d
+            .chunks_exact(8)
+            .map(|b| f64::from_le_bytes(b.try_into().unwrap_or([0; 8])) as f32)
+            .collect(),
         other => bail!("tensor `{name}`: dtype {other:?} is not supported (use F32 or F64)"),
     })
 }
@@ -39,7 +45,9 @@ pub fn parse_model(bytes: &[u8]) -> Result<LstmModel> {
     let (_, meta) = SafeTensors::read_metadata(bytes).context("not a safetensors file")?;
     let st = SafeTensors::deserialize(bytes).context("not a safetensors file")?;
     let get = |name: &str| -> Result<(Vec<usize>, Vec<f32>)> {
-        let t = st.tensor(name).map_err(|_| anyhow::anyhow!("missing tensor `{name}`"))?;
+        let t = st
+            .tensor(name)
+            .map_err(|_| anyhow::anyhow!("missing tensor `{name}`"))?;
         Ok((t.shape().to_vec(), to_f32(name, &t)?))
     };
     let (s_in, w_in) = get("input.weight")?;
@@ -53,7 +61,12 @@ pub fn parse_model(bytes: &[u8]) -> Result<LstmModel> {
              (want [E, I], [4H, E], [O, H])"
         );
     }
-    let dims = LstmDims { input: i, embed: e, hidden: h, output: o };
+    let dims = LstmDims {
+        input: i,
+        embed: e,
+        hidden: h,
+        output: o,
+    };
     let shaped = |name: &str, want: &[usize]| -> Result<Vec<f32>> {
         let (s, v) = get(name)?;
         if s != want {
@@ -65,7 +78,11 @@ pub fn parse_model(bytes: &[u8]) -> Result<LstmModel> {
         dims,
         input_names: names(meta.metadata(), "input_names", "x", i)?,
         output_names: names(meta.metadata(), "output_names", "y", o)?,
-        preset: meta.metadata().as_ref().and_then(|m| m.get("preset").cloned()).unwrap_or_else(|| "custom".into()),
+        preset: meta
+            .metadata()
+            .as_ref()
+            .and_then(|m| m.get("preset").cloned())
+            .unwrap_or_else(|| "custom".into()),
         input_mean: shaped("norm.input_mean", &[i])?,
         input_std: shaped("norm.input_std", &[i])?,
         w_in,
@@ -79,21 +96,31 @@ pub fn parse_model(bytes: &[u8]) -> Result<LstmModel> {
         output_mean: shaped("norm.output_mean", &[o])?,
         output_std: shaped("norm.output_std", &[o])?,
     };
-    if let Some(act) = meta.metadata().as_ref().and_then(|m| m.get("input_activation")) {
-        if act != "tanh" {
-            bail!("input_activation `{act}` is not supported: the firmware's input layer uses tanh");
-        }
+    let act = meta
+        .metadata()
+        .as_ref()
+        .and_then(|m| m.get("input_activation"));
+    if let Some(act) = act.filter(|a| a.as_str() != "tanh") {
+        bail!("input_activation `{act}` is not supported: the firmware's input layer uses tanh");
     }
     m.validate()?;
     Ok(m)
 }
 
-fn names(meta: &Option<HashMap<String, String>>, key: &str, default: &str, n: usize) -> Result<Vec<String>> {
+fn names(
+    meta: &Option<HashMap<String, String>>,
+    key: &str,
+    default: &str,
+    n: usize,
+) -> Result<Vec<String>> {
     match meta.as_ref().and_then(|m| m.get(key)) {
         Some(s) => {
             let v: Vec<String> = s.split(',').map(|x| x.trim().to_string()).collect();
             if v.len() != n {
-                bail!("metadata `{key}` names {} columns, the tensors have {n}", v.len());
+                bail!(
+                    "metadata `{key}` names {} columns, the tensors have {n}",
+                    v.len()
+                );
             }
             Ok(v)
         }
@@ -104,7 +131,12 @@ fn names(meta: &Option<HashMap<String, String>>, key: &str, default: &str, n: us
 /// Serialises a model (F32, PyTorch names) to safetensors bytes.
 pub fn model_bytes(m: &LstmModel) -> Result<Vec<u8>> {
     m.validate()?;
-    let LstmDims { input: i, embed: e, hidden: h, output: o } = m.dims;
+    let LstmDims {
+        input: i,
+        embed: e,
+        hidden: h,
+        output: o,
+    } = m.dims;
     let shapes: HashMap<&str, Vec<usize>> = [
         ("input.weight", vec![e, i]),
         ("input.bias", vec![e]),
@@ -121,8 +153,11 @@ pub fn model_bytes(m: &LstmModel) -> Result<Vec<u8>> {
     ]
     .into_iter()
     .collect();
-    let bufs: Vec<(&str, Vec<u8>)> =
-        m.tensors().iter().map(|(n, v)| (*n, v.iter().flat_map(|x| x.to_le_bytes()).collect())).collect();
+    let bufs: Vec<(&str, Vec<u8>)> = m
+        .tensors()
+        .iter()
+        .map(|(n, v)| (*n, v.iter().flat_map(|x| x.to_le_bytes()).collect()))
+        .collect();
     let views: Vec<(&str, TensorView)> = bufs
         .iter()
         .map(|(n, b)| Ok((*n, TensorView::new(Dtype::F32, shapes[n].clone(), b)?)))
@@ -132,7 +167,10 @@ pub fn model_bytes(m: &LstmModel) -> Result<Vec<u8>> {
         ("output_names".to_string(), m.output_names.join(",")),
         ("preset".to_string(), m.preset.clone()),
         ("input_activation".to_string(), "tanh".to_string()),
-        ("format".to_string(), "joint-feedforward-lstm-v1".to_string()),
+        (
+            "format".to_string(),
+            "joint-feedforward-lstm-v1".to_string(),
+        ),
     ]
     .into_iter()
     .collect();

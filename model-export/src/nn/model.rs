@@ -57,7 +57,12 @@ impl LstmModel {
             let k = 1.0 / (fan_in.max(1) as f32).sqrt();
             (0..n).map(|_| rng.gen_range(-k..k)).collect()
         };
-        let LstmDims { input: i, embed: e, hidden: h, output: o } = dims;
+        let LstmDims {
+            input: i,
+            embed: e,
+            hidden: h,
+            output: o,
+        } = dims;
         LstmModel {
             dims,
             input_names: (0..i).map(|k| format!("x{k}")).collect(),
@@ -83,16 +88,28 @@ impl LstmModel {
         self.streamer()?;
         for (name, v) in self.tensors() {
             if let Some(k) = v.iter().position(|x| !x.is_finite()) {
-                bail!("tensor `{name}`: element {k} is {} (weights must be finite)", v[k]);
+                bail!(
+                    "tensor `{name}`: element {k} is {} (weights must be finite)",
+                    v[k]
+                );
             }
         }
-        for (name, v) in [("norm.input_std", &self.input_std), ("norm.output_std", &self.output_std)] {
+        for (name, v) in [
+            ("norm.input_std", &self.input_std),
+            ("norm.output_std", &self.output_std),
+        ] {
             if let Some(k) = v.iter().position(|&x| x <= 0.0) {
                 bail!("tensor `{name}`: element {k} is {} (must be > 0)", v[k]);
             }
         }
-        if self.input_names.len() != self.dims.input || self.output_names.len() != self.dims.output {
-            bail!("model has {} input and {} output names for {:?}", self.input_names.len(), self.output_names.len(), self.dims);
+        if self.input_names.len() != self.dims.input || self.output_names.len() != self.dims.output
+        {
+            bail!(
+                "model has {} input and {} output names for {:?}",
+                self.input_names.len(),
+                self.output_names.len(),
+                self.dims
+            );
         }
         Ok(())
     }
@@ -118,7 +135,12 @@ impl LstmModel {
     /// A streaming runner over the FIRMWARE's f32 step.
     pub fn streamer(&self) -> Result<Streamer<'_>> {
         let h = self.dims.hidden;
-        let b_gates: Vec<f32> = self.b_ih.iter().zip(&self.b_hh).map(|(a, b)| a + b).collect();
+        let b_gates: Vec<f32> = self
+            .b_ih
+            .iter()
+            .zip(&self.b_hh)
+            .map(|(a, b)| a + b)
+            .collect();
         let s = Streamer {
             model: self,
             b_gates,
@@ -174,9 +196,15 @@ impl Streamer<'_> {
     /// One firmware step.
     pub fn step(&mut self, input: &[f32]) -> Result<Vec<f32>> {
         let mut out = vec![0.0; self.model.dims.output];
-        let (mut h, mut c, mut e, mut hs) =
-            (std::mem::take(&mut self.h), std::mem::take(&mut self.c), std::mem::take(&mut self.embed), std::mem::take(&mut self.h_scratch));
-        let r = self.view().step(&mut h, &mut c, &mut e, &mut hs, input, &mut out);
+        let (mut h, mut c, mut e, mut hs) = (
+            std::mem::take(&mut self.h),
+            std::mem::take(&mut self.c),
+            std::mem::take(&mut self.embed),
+            std::mem::take(&mut self.h_scratch),
+        );
+        let r = self
+            .view()
+            .step(&mut h, &mut c, &mut e, &mut hs, input, &mut out);
         (self.h, self.c, self.embed, self.h_scratch) = (h, c, e, hs);
         r.map_err(|e| anyhow::anyhow!("firmware LSTM step: {e}"))?;
         Ok(out)
@@ -202,8 +230,15 @@ pub struct Net {
 impl Net {
     /// Candle variables holding a model's weights.
     pub fn from_model(m: &LstmModel, dev: &Device) -> Result<Self> {
-        let LstmDims { input: i, embed: e, hidden: h, output: o } = m.dims;
-        let t = |v: &Vec<f32>, shape: &[usize]| -> Result<Var> { Ok(Var::from_tensor(&Tensor::from_slice(v, shape, dev)?)?) };
+        let LstmDims {
+            input: i,
+            embed: e,
+            hidden: h,
+            output: o,
+        } = m.dims;
+        let t = |v: &Vec<f32>, shape: &[usize]| -> Result<Var> {
+            Ok(Var::from_tensor(&Tensor::from_slice(v, shape, dev)?)?)
+        };
         let vars = vec![
             t(&m.w_in, &[e, i])?,
             t(&m.b_in, &[e])?,
@@ -219,7 +254,9 @@ impl Net {
 
     /// Copies the variables back into `m`'s weights.
     pub fn store(&self, m: &mut LstmModel) -> Result<()> {
-        let get = |k: usize| -> Result<Vec<f32>> { Ok(self.vars[k].as_tensor().flatten_all()?.to_vec1::<f32>()?) };
+        let get = |k: usize| -> Result<Vec<f32>> {
+            Ok(self.vars[k].as_tensor().flatten_all()?.to_vec1::<f32>()?)
+        };
         m.w_in = get(0)?;
         m.b_in = get(1)?;
         m.w_ih = get(2)?;
@@ -235,20 +272,32 @@ impl Net {
     /// returns normalised outputs `[B, T, O]`.
     pub fn forward(&self, x: &Tensor) -> Result<Tensor> {
         let (b, t_len, i) = x.dims3()?;
-        let LstmDims { embed: e, hidden: h, output: o, .. } = self.dims;
+        let LstmDims {
+            embed: e,
+            hidden: h,
+            output: o,
+            ..
+        } = self.dims;
         let v = |k: usize| self.vars[k].as_tensor();
         let x2 = x.reshape((b * t_len, i))?;
         let emb = x2.matmul(&v(0).t()?)?.broadcast_add(v(1))?.tanh()?;
         let bias = (v(4) + v(5))?;
-        let gx = emb.matmul(&v(2).t()?)?.broadcast_add(&bias)?.reshape((b, t_len, 4 * h))?;
+        let gx = emb
+            .matmul(&v(2).t()?)?
+            .broadcast_add(&bias)?
+            .reshape((b, t_len, 4 * h))?;
         let hs = gx.apply_op2(v(3), FusedLstm)?;
-        let y = hs.reshape((b * t_len, h))?.matmul(&v(6).t()?)?.broadcast_add(v(7))?;
+        let y = hs
+            .reshape((b * t_len, h))?
+            .matmul(&v(6).t()?)?
+            .broadcast_add(v(7))?;
         let _ = e;
         Ok(y.reshape((b, t_len, o))?)
     }
 }
 
 /// Normalises raw rows with the model's statistics into a `[1, T, I]` tensor.
+#[allow(clippy::needless_range_loop)]
 pub fn normalised_sequence(m: &LstmModel, rows: &[Vec<f32>], dev: &Device) -> Result<Tensor> {
     let i = m.dims.input;
     let mut flat = Vec::with_capacity(rows.len() * i);

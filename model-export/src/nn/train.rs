@@ -98,7 +98,11 @@ struct Windows {
 fn windows(m: &LstmModel, seqs: &[&Sequence], cfg: &TrainConfig, phase: usize) -> Windows {
     let (i, o) = (m.dims.input, m.dims.output);
     let len = cfg.burn_in + cfg.window;
-    let mut w = Windows { x: Vec::new(), y: Vec::new(), count: 0 };
+    let mut w = Windows {
+        x: Vec::new(),
+        y: Vec::new(),
+        count: 0,
+    };
     for s in seqs {
         let mut start = phase;
         while start + len <= s.len() {
@@ -119,7 +123,13 @@ fn windows(m: &LstmModel, seqs: &[&Sequence], cfg: &TrainConfig, phase: usize) -
     w
 }
 
-fn batch_loss(net: &Net, w: &Windows, idx: &[usize], cfg: &TrainConfig, dev: &Device) -> Result<Tensor> {
+fn batch_loss(
+    net: &Net,
+    w: &Windows,
+    idx: &[usize],
+    cfg: &TrainConfig,
+    dev: &Device,
+) -> Result<Tensor> {
     let (i, o) = (net.dims.input, net.dims.output);
     let len = cfg.burn_in + cfg.window;
     let mut xb = Vec::with_capacity(idx.len() * len * i);
@@ -145,7 +155,14 @@ fn eval_loss(net: &Net, w: &Windows, cfg: &TrainConfig, dev: &Device) -> Result<
 }
 
 /// One epoch over shuffled windows; returns the mean training loss.
-fn epoch(net: &Net, opt: &mut AdamW, w: &Windows, cfg: &TrainConfig, rng: &mut ChaCha8Rng, dev: &Device) -> Result<f64> {
+fn epoch(
+    net: &Net,
+    opt: &mut AdamW,
+    w: &Windows,
+    cfg: &TrainConfig,
+    rng: &mut ChaCha8Rng,
+    dev: &Device,
+) -> Result<f64> {
     let mut idx: Vec<usize> = (0..w.count).collect();
     idx.shuffle(rng);
     let mut total = 0.0;
@@ -178,11 +195,22 @@ fn epoch(net: &Net, opt: &mut AdamW, w: &Windows, cfg: &TrainConfig, rng: &mut C
 }
 
 /// A fresh model for `train` with normalisation from the training block only.
-pub fn new_model(train: &Sequence, input_names: Vec<String>, output_names: Vec<String>, preset: &str, cfg: &TrainConfig) -> Result<LstmModel> {
+pub fn new_model(
+    train: &Sequence,
+    input_names: Vec<String>,
+    output_names: Vec<String>,
+    preset: &str,
+    cfg: &TrainConfig,
+) -> Result<LstmModel> {
     if train.is_empty() {
         bail!("the training block is empty");
     }
-    let dims = LstmDims { input: train.inputs[0].len(), embed: cfg.embed, hidden: cfg.hidden, output: train.targets[0].len() };
+    let dims = LstmDims {
+        input: train.inputs[0].len(),
+        embed: cfg.embed,
+        hidden: cfg.hidden,
+        output: train.targets[0].len(),
+    };
     let mut m = LstmModel::init(dims, cfg.seed);
     (m.input_mean, m.input_std) = mean_std(&train.inputs);
     (m.output_mean, m.output_std) = mean_std(&train.targets);
@@ -192,28 +220,56 @@ pub fn new_model(train: &Sequence, input_names: Vec<String>, output_names: Vec<S
     Ok(m)
 }
 
-fn run(init: &LstmModel, train: &[&Sequence], val: &[&Sequence], cfg: &TrainConfig, lr: f64, epochs: usize, show: bool) -> Result<(LstmModel, History)> {
+fn run(
+    init: &LstmModel,
+    train: &[&Sequence],
+    val: &[&Sequence],
+    cfg: &TrainConfig,
+    lr: f64,
+    epochs: usize,
+    show: bool,
+) -> Result<(LstmModel, History)> {
     let dev = Device::Cpu;
     let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed ^ 0x5eed);
     let net = Net::from_model(init, &dev)?;
-    let mut opt = AdamW::new(net.vars.clone(), ParamsAdamW { lr, weight_decay: 0.0, ..Default::default() })?;
+    let mut opt = AdamW::new(
+        net.vars.clone(),
+        ParamsAdamW {
+            lr,
+            weight_decay: 0.0,
+            ..Default::default()
+        },
+    )?;
     let val_w = windows(init, val, cfg, 0);
     if val_w.count == 0 {
-        bail!("the validation block is shorter than one window ({} steps)", cfg.burn_in + cfg.window);
+        bail!(
+            "the validation block is shorter than one window ({} steps)",
+            cfg.burn_in + cfg.window
+        );
     }
-    let bar = if show { indicatif::ProgressBar::new(epochs as u64) } else { indicatif::ProgressBar::hidden() };
+    let bar = if show {
+        indicatif::ProgressBar::new(epochs as u64)
+    } else {
+        indicatif::ProgressBar::hidden()
+    };
     bar.set_style(
         indicatif::ProgressStyle::with_template("epoch {pos}/{len} [{bar:30}] {msg} ETA {eta}")
             .map_err(|e| anyhow::anyhow!("{e}"))?
             .progress_chars("=> "),
     );
-    let mut hist = History { lr, ..Default::default() };
+    let mut hist = History {
+        lr,
+        ..Default::default()
+    };
     let mut best = (f64::INFINITY, init.clone());
     for ep in 0..epochs {
         let phase = rng.gen_range(0..cfg.window.max(1));
         let w = windows(init, train, cfg, phase);
         if w.count == 0 {
-            bail!("the training block is shorter than one window ({} steps)", cfg.burn_in + cfg.window);
+            bail!(
+                "the training block is shorter than one window ({} steps)",
+                cfg.burn_in + cfg.window
+            );
         }
         let tl = epoch(&net, &mut opt, &w, cfg, &mut rng, &dev)?;
         let vl = eval_loss(&net, &val_w, cfg, &dev)?;
@@ -224,7 +280,11 @@ fn run(init: &LstmModel, train: &[&Sequence], val: &[&Sequence], cfg: &TrainConf
             net.store(&mut best.1)?;
             hist.best_epoch = ep;
         }
-        bar.set_message(format!("train {tl:.4} val {vl:.4} best {:.4}@{}", best.0, hist.best_epoch + 1));
+        bar.set_message(format!(
+            "train {tl:.4} val {vl:.4} best {:.4}@{}",
+            best.0,
+            hist.best_epoch + 1
+        ));
         bar.inc(1);
         if !tl.is_finite() {
             break;
@@ -242,7 +302,12 @@ fn run(init: &LstmModel, train: &[&Sequence], val: &[&Sequence], cfg: &TrainConf
 
 /// Trains `init` (from [`new_model`]) on the training sequences with early stopping on
 /// the validation sequences; returns the best model and the loss history.
-pub fn train(init: &LstmModel, train: &[&Sequence], val: &[&Sequence], cfg: &TrainConfig) -> Result<(LstmModel, History)> {
+pub fn train(
+    init: &LstmModel,
+    train: &[&Sequence],
+    val: &[&Sequence],
+    cfg: &TrainConfig,
+) -> Result<(LstmModel, History)> {
     let (lr, trials) = match cfg.lr {
         Some(lr) => (lr, Vec::new()),
         None => {
@@ -253,11 +318,19 @@ pub fn train(init: &LstmModel, train: &[&Sequence], val: &[&Sequence], cfg: &Tra
                     Err(_) => f64::INFINITY,
                 };
                 if cfg.progress {
-                    eprintln!("learning rate {lr}: validation RMS {v:.4} after {} epochs", cfg.lr_trial_epochs);
+                    eprintln!(
+                        "learning rate {lr}: validation RMS {v:.4} after {} epochs",
+                        cfg.lr_trial_epochs
+                    );
                 }
                 trials.push((lr, v));
             }
-            let best = trials.iter().cloned().fold((LR_CANDIDATES[0], f64::INFINITY), |a, b| if b.1 < a.1 { b } else { a });
+            let best = trials
+                .iter()
+                .cloned()
+                .fold((LR_CANDIDATES[0], f64::INFINITY), |a, b| {
+                    if b.1 < a.1 { b } else { a }
+                });
             (best.0, trials)
         }
     };
@@ -268,11 +341,24 @@ pub fn train(init: &LstmModel, train: &[&Sequence], val: &[&Sequence], cfg: &Tra
 
 /// Wall-clock seconds of `epochs` training epochs (no validation) over `train`, for the
 /// benchmark: the same windows, batches, loss, clipping and optimiser as [`train`].
-pub fn time_epochs(init: &LstmModel, train: &[&Sequence], cfg: &TrainConfig, lr: f64, epochs: usize) -> Result<(usize, Vec<f64>)> {
+pub fn time_epochs(
+    init: &LstmModel,
+    train: &[&Sequence],
+    cfg: &TrainConfig,
+    lr: f64,
+    epochs: usize,
+) -> Result<(usize, Vec<f64>)> {
     let dev = Device::Cpu;
     let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed);
     let net = Net::from_model(init, &dev)?;
-    let mut opt = AdamW::new(net.vars.clone(), ParamsAdamW { lr, weight_decay: 0.0, ..Default::default() })?;
+    let mut opt = AdamW::new(
+        net.vars.clone(),
+        ParamsAdamW {
+            lr,
+            weight_decay: 0.0,
+            ..Default::default()
+        },
+    )?;
     let w = windows(init, train, cfg, 0);
     let mut times = Vec::new();
     for _ in 0..epochs {
