@@ -20,6 +20,12 @@ fn sigmoid(x: f32) -> f32 {
     1.0 / (1.0 + (-x).exp())
 }
 
+/// tanh through one `exp` (libm's `tanhf` goes through `expm1f` and was 30 % of an epoch
+/// in a profile); absolute error ~1e-7, saturates to ±1 without NaN.
+fn tanh(x: f32) -> f32 {
+    2.0 * sigmoid(2.0 * x) - 1.0
+}
+
 fn contiguous<'a>(s: &'a CpuStorage, l: &Layout) -> Result<&'a [f32]> {
     let data = s.as_slice::<f32>()?;
     match l.contiguous_offsets() {
@@ -65,10 +71,10 @@ fn forward(
             for j in 0..h {
                 let i = sigmoid(gr[j]);
                 let f = sigmoid(gr[h + j]);
-                let g = gr[2 * h + j].tanh();
+                let g = tanh(gr[2 * h + j]);
                 let o = sigmoid(gr[3 * h + j]);
                 cr[j] = f * cr[j] + i * g;
-                hr[j] = o * cr[j].tanh();
+                hr[j] = o * tanh(cr[j]);
                 if tape {
                     gr[j] = i;
                     gr[h + j] = f;
@@ -109,7 +115,7 @@ fn backward(
                 let (i, f, g, o) = (at[j], at[h + j], at[2 * h + j], at[3 * h + j]);
                 let c = cs[row + j];
                 let c_prev = if t > 0 { cs[row - h + j] } else { 0.0 };
-                let tc = c.tanh();
+                let tc = tanh(c);
                 let dh = d_hs[row + j] + dh_next[bi * h + j];
                 let d_o = dh * tc;
                 let dc = dc_next[bi * h + j] + dh * o * (1.0 - tc * tc);
