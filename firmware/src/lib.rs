@@ -13,4 +13,5 @@ pub mod drivers;
 pub mod dynamics;
 pub mod golden;
 pub mod log;
+pub mod lstm;
 pub mod math;

@@ -106,6 +106,22 @@ pub fn host_dynamics() -> Vec<Record> {
     out
 }
 
+/// The host's computation of the `lstm` suite: the golden network streamed step by step.
+pub fn host_lstm() -> Vec<Record> {
+    let mut out = Vec::with_capacity(golden::LSTM_STEPS * golden::LSTM_O);
+    golden::lstm_stream(|t, y| {
+        for (k, v) in y.iter().enumerate() {
+            out.push(Record::new(
+                "lstm",
+                t * golden::LSTM_O + k,
+                t as u32,
+                v.to_bits(),
+            ));
+        }
+    });
+    out
+}
+
 /// Outcome of comparing one suite.
 #[derive(Debug)]
 pub struct SuiteCheck {
@@ -118,10 +134,11 @@ pub struct SuiteCheck {
 /// Compares every suite of a QEMU report with the host's computation.
 pub fn check_report(report: &str) -> Result<Vec<SuiteCheck>> {
     let suites = parse_report(report)?;
-    let host: [(&'static str, Vec<Record>); 3] = [
+    let host: [(&'static str, Vec<Record>); 4] = [
         ("math", host_math()),
         ("dot", host_dot()),
         ("dynamics", host_dynamics()),
+        ("lstm", host_lstm()),
     ];
     let mut checks = Vec::new();
     for (name, host_records) in host {
