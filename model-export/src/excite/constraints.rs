@@ -123,12 +123,69 @@ struct JointSpace {
     amplitude_rad: f64,
 }
 
-/// Dense-grid images of the particular solution and of the null-space basis of one joint.
+/// Grid images of the particular solution and of the null-space basis of one joint.
 #[derive(Debug, Clone)]
 struct JointGrid {
     base: [DVector<f64>; 3],
     dirs: [DMatrix<f64>; 3],
 }
+
+/// A uniform grid over one period (both ends included): basis matrices and per-joint images.
+#[derive(Debug, Clone)]
+struct Grid {
+    basis: [DMatrix<f64>; 3],
+    joints: Vec<JointGrid>,
+}
+
+impl Grid {
+    fn new(points: usize, period_s: f64, harmonics: usize, spaces: &[JointSpace]) -> Self {
+        let width = 1 + 2 * harmonics;
+        let omega = TAU / period_s;
+        let dt = period_s / (points - 1) as f64;
+        let mut g = [
+            DMatrix::zeros(points, width),
+            DMatrix::zeros(points, width),
+            DMatrix::zeros(points, width),
+        ];
+        let mut row = vec![0.0; width];
+        for i in 0..points {
+            let t = i as f64 * dt;
+            for (d, m) in [Derivative::Position, Derivative::Velocity, Derivative::Acceleration]
+                .into_iter()
+                .zip(g.iter_mut())
+            {
+                basis(d, harmonics, omega, t, &mut row);
+                for (c, v) in row.iter().enumerate() {
+                    m[(i, c)] = *v;
+                }
+            }
+        }
+        let joints = spaces
+            .iter()
+            .map(|s| JointGrid {
+                base: [&g[0] * &s.particular, &g[1] * &s.particular, &g[2] * &s.particular],
+                dirs: [&g[0] * &s.null, &g[1] * &s.null, &g[2] * &s.null],
+            })
+            .collect();
+        Self { basis: g, joints }
+    }
+
+    fn update_base(&mut self, spaces: &[JointSpace]) {
+        for (jg, s) in self.joints.iter_mut().zip(spaces) {
+            jg.base = [
+                &self.basis[0] * &s.particular,
+                &self.basis[1] * &s.particular,
+                &self.basis[2] * &s.particular,
+            ];
+        }
+    }
+}
+
+/// Points per period of the grid the optimiser checks limits on during the search (the final
+/// trajectory is then scaled on the dense grid). With at most `N` harmonics this grid has
+/// `SEARCH_GRID_POINTS / N` points per period of the highest harmonic: for N = 5, 100, which
+/// misses a peak by at most `1 − cos(π/100) ≈ 5e-4` relative.
+pub const SEARCH_GRID_POINTS: usize = 501;
 
 /// The constrained Fourier family: every decision vector `x` maps to a trajectory that meets the
 /// rest and point constraints exactly; [`FourierFamily::feasible_scale`] maps it into the limits.
@@ -140,7 +197,8 @@ pub struct FourierFamily {
     limits: Vec<JointLimits>,
     spaces: Vec<JointSpace>,
     offsets: Vec<usize>,
-    grid: Vec<JointGrid>,
+    grid: Grid,
+    search_grid: Grid,
     grid_points: usize,
 }
 
@@ -227,34 +285,11 @@ impl FourierFamily {
         }
         offsets.push(acc);
 
-        // Dense grid over one period, both ends included.
+        // Dense grid over one period, both ends included; a coarser one for the search.
         let grid_points = sample_count(period_s, check_rate_hz);
-        let dt = period_s / (grid_points - 1) as f64;
-        let mut g = [
-            DMatrix::zeros(grid_points, width),
-            DMatrix::zeros(grid_points, width),
-            DMatrix::zeros(grid_points, width),
-        ];
-        let mut row = vec![0.0; width];
-        for i in 0..grid_points {
-            let t = i as f64 * dt;
-            for (d, m) in [Derivative::Position, Derivative::Velocity, Derivative::Acceleration]
-                .into_iter()
-                .zip(g.iter_mut())
-            {
-                basis(d, harmonics, omega, t, &mut row);
-                for (c, v) in row.iter().enumerate() {
-                    m[(i, c)] = *v;
-                }
-            }
-        }
-        let grid = spaces
-            .iter()
-            .map(|s| JointGrid {
-                base: [&g[0] * &s.particular, &g[1] * &s.particular, &g[2] * &s.particular],
-                dirs: [&g[0] * &s.null, &g[1] * &s.null, &g[2] * &s.null],
-            })
-            .collect();
+        let grid = Grid::new(grid_points, period_s, harmonics, &spaces);
+        let search_points = SEARCH_GRID_POINTS.max(40 * harmonics + 1).min(grid_points);
+        let search_grid = Grid::new(search_points, period_s, harmonics, &spaces);
         Ok(Self {
             period_s,
             harmonics,
@@ -263,6 +298,7 @@ impl FourierFamily {
             spaces,
             offsets,
             grid,
+            search_grid,
             grid_points,
         })
     }
@@ -322,10 +358,10 @@ impl FourierFamily {
     }
 
     /// The particular part `c_p` and direction part `Z·x` of joint `j` on the dense grid.
-    fn grid_parts(&self, x: &[f64], j: usize) -> (&GridValues, GridValues) {
+    fn grid_parts<'g>(&self, grid: &'g Grid, x: &[f64], j: usize) -> (&'g GridValues, GridValues) {
         let s = &self.spaces[j];
         let xj = DVector::from_column_slice(&x[self.offsets[j]..self.offsets[j + 1]]) * s.amplitude_rad;
-        let gr = &self.grid[j];
+        let gr = &grid.joints[j];
         let dirs = [&gr.dirs[0] * &xj, &gr.dirs[1] * &xj, &gr.dirs[2] * &xj];
         (&gr.base, dirs)
     }
@@ -334,10 +370,20 @@ impl FourierFamily {
     /// grid. Requires the particular solution itself to be feasible (see
     /// [`FourierFamily::particular_margins`]); returns 0 otherwise.
     pub fn feasible_scale(&self, x: &[f64], cap: f64) -> f64 {
+        self.scale_on(&self.grid, x, cap)
+    }
+
+    /// [`FourierFamily::feasible_scale`] on the coarser search grid ([`SEARCH_GRID_POINTS`]); the
+    /// optimiser uses it and rescales its result on the dense grid.
+    pub fn search_scale(&self, x: &[f64], cap: f64) -> f64 {
+        self.scale_on(&self.search_grid, x, cap)
+    }
+
+    fn scale_on(&self, grid: &Grid, x: &[f64], cap: f64) -> f64 {
         let mut s_max: f64 = cap;
         for j in 0..self.joint_count() {
             let l = &self.limits[j];
-            let (base, dir) = self.grid_parts(x, j);
+            let (base, dir) = self.grid_parts(grid, x, j);
             let bounds = [
                 (l.q_min_rad, l.q_max_rad),
                 (-l.qd_max_rad_s, l.qd_max_rad_s),
@@ -364,7 +410,7 @@ impl FourierFamily {
         let mut out = Vec::with_capacity(4 * self.joint_count());
         for j in 0..self.joint_count() {
             let l = self.limits[j];
-            let (base, dir) = self.grid_parts(x, j);
+            let (base, dir) = self.grid_parts(&self.grid, x, j);
             let vals: Vec<DVector<f64>> = (0..3).map(|k| &base[k] + &dir[k] * scale).collect();
             out.extend(margins_of(j, &l, &vals[0], &vals[1], &vals[2]));
         }
@@ -385,11 +431,8 @@ impl FourierFamily {
             let xj = DVector::from_column_slice(&x[self.offsets[j]..self.offsets[j + 1]]);
             s.particular += (&s.null * xj) * (scale * s.amplitude_rad);
         }
-        for j in 0..self.joint_count() {
-            let (base, dir) = self.grid_parts(x, j);
-            let nb = [&base[0] + &dir[0] * scale, &base[1] + &dir[1] * scale, &base[2] + &dir[2] * scale];
-            self.grid[j].base = nb;
-        }
+        self.grid.update_base(&self.spaces);
+        self.search_grid.update_base(&self.spaces);
     }
 }
 

@@ -223,7 +223,7 @@ pub fn design<M: ObservationModel + ?Sized>(
         let mut evaluator = ObservationEvaluator::new(model, settings.objective_samples);
         let f = |x: &DVector<f64>| {
             count.set(count.get() + 1);
-            let s = fam.feasible_scale(x.as_slice(), 1.0);
+            let s = fam.search_scale(x.as_slice(), 1.0);
             if s <= 0.0 {
                 return 1e6;
             }
@@ -254,7 +254,8 @@ pub fn design<M: ObservationModel + ?Sized>(
         });
         if best.as_ref().is_none_or(|b| ind.value < b.0) {
             let x = ind.point.as_slice().to_vec();
-            let s = family.feasible_scale(&x, 1.0);
+            // Final scale on the dense grid (at most a hair below the search grid's).
+            let s = family.feasible_scale(&x, family.search_scale(&x, 1.0));
             best = Some((ind.value, x, s));
         }
     }
