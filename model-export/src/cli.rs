@@ -20,11 +20,14 @@ pub enum Command {
         #[arg(long, default_value_t = 9)]
         points: usize,
     },
+    /// Design an optimised Fourier excitation trajectory (coefficients JSON, playback CSV, plot).
+    Excite(crate::excite::cli::ExciteArgs),
 }
 
 /// Runs one parsed command line.
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
+        Command::Excite(args) => crate::excite::cli::run(&args),
         Command::Primitives { points } => {
             println!("{:>10} {:>12} {:>12} {:>12}", "x", "exp", "tanh", "sigmoid");
             for i in 0..points {

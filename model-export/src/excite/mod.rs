@@ -7,10 +7,12 @@
 //! - [`optimise`]: seeded multi-start CMA-ES.
 //! - [`output`]: coefficient JSON, playback CSV, SVG plots.
 
+pub mod cli;
 pub mod constraints;
 pub mod objective;
 pub mod optimise;
 pub mod output;
+pub mod robot_model;
 pub mod trajectory;
 
 pub use constraints::{ConstraintMargin, FourierFamily, JointLimits, LimitKind, PointConstraint};
