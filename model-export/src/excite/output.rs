@@ -169,7 +169,7 @@ fn playback_csv(layout: &PlaybackLayout, sampled: &SampledTrajectory) -> Result<
     let io = |e: csv::Error| ExciteError::Io(e.to_string());
     w.write_record(playback_header(layout.joint_names.len())).map_err(io)?;
     for row in playback(layout, sampled) {
-        w.write_record(row.iter().map(|v| format!("{v:.12e}"))).map_err(io)?;
+        w.write_record(row.iter().map(|v| format!("{v:e}"))).map_err(io)?;
     }
     w.into_inner().map_err(|e| ExciteError::Io(e.to_string()))
 }
@@ -295,6 +295,19 @@ fn stage(dest: &Path, bytes: &[u8]) -> Result<tempfile::NamedTempFile, ExciteErr
         .map_err(|e| ExciteError::Io(format!("{}: {e}", dest.display())))?;
     tmp.write_all(bytes)
         .and_then(|_| tmp.flush())
+        .and_then(|_| make_readable(tmp.path()))
         .map_err(|e| ExciteError::Io(format!("{}: {e}", dest.display())))?;
     Ok(tmp)
+}
+
+/// Temporary files are created owner-only; outputs get the usual `rw-r--r--`.
+#[cfg(unix)]
+fn make_readable(path: &Path) -> std::io::Result<()> {
+    use std::os::unix::fs::PermissionsExt;
+    std::fs::set_permissions(path, std::fs::Permissions::from_mode(0o644))
+}
+
+#[cfg(not(unix))]
+fn make_readable(_path: &Path) -> std::io::Result<()> {
+    Ok(())
 }
