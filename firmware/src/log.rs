@@ -11,7 +11,9 @@ macro_rules! fw_info { ($($arg:tt)*) => { $crate::log::defmt::info!($($arg)*) };
 /// Info-level log message (defmt syntax); a no-op without the `defmt` feature.
 #[cfg(not(feature = "defmt"))]
 #[macro_export]
-macro_rules! fw_info { ($($arg:tt)*) => {{}}; }
+macro_rules! fw_info {
+    ($($arg:tt)*) => {{}};
+}
 
 /// Warning-level log message (defmt syntax); a no-op without the `defmt` feature.
 #[cfg(feature = "defmt")]
@@ -20,7 +22,9 @@ macro_rules! fw_warn { ($($arg:tt)*) => { $crate::log::defmt::warn!($($arg)*) };
 /// Warning-level log message (defmt syntax); a no-op without the `defmt` feature.
 #[cfg(not(feature = "defmt"))]
 #[macro_export]
-macro_rules! fw_warn { ($($arg:tt)*) => {{}}; }
+macro_rules! fw_warn {
+    ($($arg:tt)*) => {{}};
+}
 
 /// Error-level log message (defmt syntax); a no-op without the `defmt` feature.
 #[cfg(feature = "defmt")]
@@ -29,4 +33,6 @@ macro_rules! fw_error { ($($arg:tt)*) => { $crate::log::defmt::error!($($arg)*) 
 /// Error-level log message (defmt syntax); a no-op without the `defmt` feature.
 #[cfg(not(feature = "defmt"))]
 #[macro_export]
-macro_rules! fw_error { ($($arg:tt)*) => {{}}; }
+macro_rules! fw_error {
+    ($($arg:tt)*) => {{}};
+}

@@ -17,7 +17,12 @@ pub struct Record {
 impl Record {
     /// A record from its parts.
     pub fn new(function: &str, index: usize, input_bits: u32, output_bits: u32) -> Self {
-        Record { function: function.to_string(), index, input_bits, output_bits }
+        Record {
+            function: function.to_string(),
+            index,
+            input_bits,
+            output_bits,
+        }
     }
 }
 
@@ -55,10 +60,19 @@ impl fmt::Display for Mismatch {
             Mismatch::Count { target, host } => {
                 write!(f, "target produced {target} records, host {host}")
             }
-            Mismatch::Case { position, target, host } => write!(
+            Mismatch::Case {
+                position,
+                target,
+                host,
+            } => write!(
                 f,
                 "record {position}: target has {} #{} input {:#010x}, host has {} #{} input {:#010x}",
-                target.function, target.index, target.input_bits, host.function, host.index, host.input_bits
+                target.function,
+                target.index,
+                target.input_bits,
+                host.function,
+                host.index,
+                host.input_bits
             ),
             Mismatch::Output { host, target_bits } => write!(
                 f,
@@ -82,14 +96,24 @@ impl std::error::Error for Mismatch {}
 pub fn compare(target: &[Record], host: &[Record]) -> Result<usize, Mismatch> {
     for (position, (t, h)) in target.iter().zip(host).enumerate() {
         if t.function != h.function || t.index != h.index || t.input_bits != h.input_bits {
-            return Err(Mismatch::Case { position, target: t.clone(), host: h.clone() });
+            return Err(Mismatch::Case {
+                position,
+                target: t.clone(),
+                host: h.clone(),
+            });
         }
         if t.output_bits != h.output_bits {
-            return Err(Mismatch::Output { host: h.clone(), target_bits: t.output_bits });
+            return Err(Mismatch::Output {
+                host: h.clone(),
+                target_bits: t.output_bits,
+            });
         }
     }
     if target.len() != host.len() {
-        return Err(Mismatch::Count { target: target.len(), host: host.len() });
+        return Err(Mismatch::Count {
+            target: target.len(),
+            host: host.len(),
+        });
     }
     Ok(host.len())
 }
@@ -99,7 +123,9 @@ mod tests {
     use super::*;
 
     fn records() -> Vec<Record> {
-        (0..5).map(|i| Record::new("exp", i, (i as f32).to_bits(), (i as f32).exp().to_bits())).collect()
+        (0..5)
+            .map(|i| Record::new("exp", i, (i as f32).to_bits(), (i as f32).exp().to_bits()))
+            .collect()
     }
 
     #[test]
@@ -113,10 +139,19 @@ mod tests {
         let mut target = records();
         target[3].output_bits += 1;
         let err = compare(&target, &host).unwrap_err();
-        assert_eq!(err, Mismatch::Output { host: host[3].clone(), target_bits: host[3].output_bits + 1 });
+        assert_eq!(
+            err,
+            Mismatch::Output {
+                host: host[3].clone(),
+                target_bits: host[3].output_bits + 1
+            }
+        );
         let text = err.to_string();
         assert!(text.starts_with("exp #3: input 0x40400000"), "{text}");
-        assert!(text.contains(&format!("{:#010x}", host[3].output_bits + 1)), "{text}");
+        assert!(
+            text.contains(&format!("{:#010x}", host[3].output_bits + 1)),
+            "{text}"
+        );
     }
 
     #[test]
@@ -124,7 +159,13 @@ mod tests {
         let host = records();
         let mut target = records();
         target[1].input_bits ^= 1;
-        assert!(matches!(compare(&target, &host), Err(Mismatch::Case { position: 1, .. })));
-        assert_eq!(compare(&host[..4], &host), Err(Mismatch::Count { target: 4, host: 5 }));
+        assert!(matches!(
+            compare(&target, &host),
+            Err(Mismatch::Case { position: 1, .. })
+        ));
+        assert_eq!(
+            compare(&host[..4], &host),
+            Err(Mismatch::Count { target: 4, host: 5 })
+        );
     }
 }

@@ -54,7 +54,13 @@ pub fn require_target() -> Result<()> {
         .current_dir(workspace_root())
         .output();
     match out {
-        Ok(o) if String::from_utf8_lossy(&o.stdout).lines().any(|l| l.trim() == TARGET) => Ok(()),
+        Ok(o)
+            if String::from_utf8_lossy(&o.stdout)
+                .lines()
+                .any(|l| l.trim() == TARGET) =>
+        {
+            Ok(())
+        }
         Ok(_) => bail!(
             "the Rust target {TARGET} is not installed: run `rustup target add {TARGET}` \
              (or `bash .ci/run`, which installs it)"
@@ -68,14 +74,24 @@ pub fn build(bin: FirmwareBin) -> Result<PathBuf> {
     require_target()?;
     let status = Command::new(env!("CARGO"))
         .current_dir(workspace_root())
-        .args(["build", "--release", "--target", TARGET, "--bin", bin.name()])
+        .args([
+            "build",
+            "--release",
+            "--target",
+            TARGET,
+            "--bin",
+            bin.name(),
+        ])
         .args(bin.cargo_args())
         .arg("--target-dir")
         .arg(target_dir())
         .status()
         .context("running cargo to build the firmware")?;
     if !status.success() {
-        bail!("building firmware binary `{}` for {TARGET} failed ({status})", bin.name());
+        bail!(
+            "building firmware binary `{}` for {TARGET} failed ({status})",
+            bin.name()
+        );
     }
     let elf = target_dir().join(TARGET).join("release").join(bin.name());
     if !elf.is_file() {

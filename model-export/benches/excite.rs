@@ -33,7 +33,9 @@ fn robot() -> Option<(Robot, LimitOverrides)> {
 
 fn main() {
     let Some((robot, overrides)) = robot() else {
-        println!("skipped: no robot description (robots/default.toml or $DATASETS_DIR/ur10e/ur10e.urdf)");
+        println!(
+            "skipped: no robot description (robots/default.toml or $DATASETS_DIR/ur10e/ur10e.urdf)"
+        );
         return;
     };
     println!("robot: {}", robot.source.display());
@@ -43,7 +45,10 @@ fn main() {
     );
     let mut six = robot.clone();
     six.model_all_joints();
-    for (label, r) in [("wrist 4-6", robot.default_paper_selection()), ("all 6", six)] {
+    for (label, r) in [
+        ("wrist 4-6", robot.default_paper_selection()),
+        ("all 6", six),
+    ] {
         let model = RobotObservation::new(r).expect("base parameters");
         let limits = joint_limits(model.robot(), &overrides).expect("limits");
         let rest = vec![0.0; limits.len()];
@@ -59,7 +64,13 @@ fn main() {
         .expect("family");
         let d = design(&model, family.clone(), &settings).expect("design");
         let mut random: Vec<f64> = (0..5)
-            .map(|s| condition_number(&observation_matrix(&model, &random_feasible(&family, 50 + s), settings.rate_hz)))
+            .map(|s| {
+                condition_number(&observation_matrix(
+                    &model,
+                    &random_feasible(&family, 50 + s),
+                    settings.rate_hz,
+                ))
+            })
             .collect();
         random.sort_by(f64::total_cmp);
         println!(

@@ -5,8 +5,8 @@
 
 pub mod base;
 pub mod cli;
-pub mod excite;
 pub mod dynamics;
+pub mod excite;
 pub mod identify;
 pub mod logs;
 pub mod model_file;

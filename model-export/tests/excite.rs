@@ -31,19 +31,43 @@ fn assert_admissible(tr: &ExcitationTrajectory, rest: &[f64], lim: &[JointLimits
     let dense = tr.sample(100.0 * 20.0, 1);
     for k in 0..dense.t_s.len() {
         for (j, l) in lim.iter().enumerate() {
-            let (q, qd, qdd) = (dense.q_rad[k][j], dense.qd_rad_s[k][j], dense.qdd_rad_s2[k][j]);
+            let (q, qd, qdd) = (
+                dense.q_rad[k][j],
+                dense.qd_rad_s[k][j],
+                dense.qdd_rad_s2[k][j],
+            );
             let tol = 1e-6;
-            assert!(q <= l.q_max_rad + tol && q >= l.q_min_rad - tol, "q{j}({}) = {q}", dense.t_s[k]);
-            assert!(qd.abs() <= l.qd_max_rad_s * (1.0 + tol), "qd{j}({}) = {qd}", dense.t_s[k]);
-            assert!(qdd.abs() <= l.qdd_max_rad_s2 * (1.0 + tol), "qdd{j}({}) = {qdd}", dense.t_s[k]);
+            assert!(
+                q <= l.q_max_rad + tol && q >= l.q_min_rad - tol,
+                "q{j}({}) = {q}",
+                dense.t_s[k]
+            );
+            assert!(
+                qd.abs() <= l.qd_max_rad_s * (1.0 + tol),
+                "qd{j}({}) = {qd}",
+                dense.t_s[k]
+            );
+            assert!(
+                qdd.abs() <= l.qdd_max_rad_s2 * (1.0 + tol),
+                "qdd{j}({}) = {qdd}",
+                dense.t_s[k]
+            );
         }
     }
     for t in [0.0, tr.period_s] {
         let p = tr.eval(t);
         for j in 0..rest.len() {
-            assert!((p.q_rad[j] - rest[j]).abs() < 1e-9, "q{j}({t}) = {}", p.q_rad[j]);
+            assert!(
+                (p.q_rad[j] - rest[j]).abs() < 1e-9,
+                "q{j}({t}) = {}",
+                p.q_rad[j]
+            );
             assert!(p.qd_rad_s[j].abs() < 1e-9, "qd{j}({t}) = {}", p.qd_rad_s[j]);
-            assert!(p.qdd_rad_s2[j].abs() < 1e-9, "qdd{j}({t}) = {}", p.qdd_rad_s2[j]);
+            assert!(
+                p.qdd_rad_s2[j].abs() < 1e-9,
+                "qdd{j}({t}) = {}",
+                p.qdd_rad_s2[j]
+            );
         }
     }
 }
@@ -57,7 +81,11 @@ fn optimised_design_is_admissible_and_beats_random_trajectories() {
     let family = FourierFamily::new(settings.period_s, 5, &rest, &lim, &[], 1000.0).unwrap();
     let d = design(&model, family.clone(), &settings).unwrap();
     assert_admissible(&d.trajectory, &rest, &lim);
-    assert!(d.margins.iter().all(|m| m.margin >= -1e-12), "{:?}", d.margins);
+    assert!(
+        d.margins.iter().all(|m| m.margin >= -1e-12),
+        "{:?}",
+        d.margins
+    );
     assert_eq!(d.margins.len(), 12);
     assert!(d.evaluations >= 2 * 100, "evaluations {}", d.evaluations);
     // Baseline: the median of several random feasible trajectories.
@@ -73,8 +101,14 @@ fn optimised_design_is_admissible_and_beats_random_trajectories() {
         "toy 3-joint: optimised cond {:.2}, random feasible cond (median of 5) {:.2}",
         d.score.condition, random[2]
     );
-    assert!(d.score.condition < random[0], "worse than the best random trajectory");
-    assert!(d.score.condition * 2.0 < random[2], "not 2x better than the median");
+    assert!(
+        d.score.condition < random[0],
+        "worse than the best random trajectory"
+    );
+    assert!(
+        d.score.condition * 2.0 < random[2],
+        "not 2x better than the median"
+    );
 }
 
 #[test]
@@ -134,7 +168,7 @@ fn infeasible_problem_names_the_tightest_constraint() {
     };
     let err = design(&model, fam, &settings).unwrap_err().to_string();
     println!("{err}");
-    assert!(err.contains("joint 0 velocity limit"), "{err}");
+    assert!(err.contains("moving joint #0 velocity limit"), "{err}");
 }
 
 #[test]

@@ -52,7 +52,12 @@ fn SysTick() {
     let cycles = DWT::cycle_count().wrapping_sub(start);
     *TICKS = TICKS.wrapping_add(1);
     if *TICKS % TICK_HZ == 0 {
-        firmware::fw_info!("tick {=u32}: {=u32} cycles (DWT CYCCNT), out {=f32}", *TICKS, cycles, out);
+        firmware::fw_info!(
+            "tick {=u32}: {=u32} cycles (DWT CYCCNT), out {=f32}",
+            *TICKS,
+            cycles,
+            out
+        );
     }
     let _ = (cycles, out);
 }

@@ -85,10 +85,15 @@ fn select_joints(robot: &mut Robot, spec: &str) -> anyhow::Result<()> {
                 .split(',')
                 .map(|s| s.trim().parse::<usize>())
                 .collect::<Result<_, _>>()
-                .with_context(|| format!("--joints `{list}`: expected file, wrist, all or a list like 4,5,6"))?;
+                .with_context(|| {
+                    format!("--joints `{list}`: expected file, wrist, all or a list like 4,5,6")
+                })?;
             for &p in &picked {
                 if p == 0 || p > robot.dof() {
-                    bail!("--joints: joint {p} does not exist (the robot has {} joints)", robot.dof());
+                    bail!(
+                        "--joints: joint {p} does not exist (the robot has {} joints)",
+                        robot.dof()
+                    );
                 }
             }
             for i in 0..robot.dof() {
@@ -150,6 +155,14 @@ pub fn run(a: &ExciteArgs) -> anyhow::Result<()> {
         seed: a.seed,
         ..ExcitationSettings::default()
     };
+    let legend = robot
+        .modelled_joints()
+        .iter()
+        .enumerate()
+        .map(|(m, &i)| format!("#{m} = joint {} ({})", i + 1, robot.joints[i].name))
+        .collect::<Vec<_>>()
+        .join(", ");
+    let legend = format!("moving joints {legend}");
     let family = FourierFamily::new(
         a.period,
         a.harmonics,
@@ -157,30 +170,36 @@ pub fn run(a: &ExciteArgs) -> anyhow::Result<()> {
         &limits,
         &extra,
         a.rate * a.check_factor as f64,
-    )?;
-    let moving: Vec<String> = robot
-        .modelled_joints()
-        .iter()
-        .map(|&i| format!("{} ({})", i + 1, robot.joints[i].name))
-        .collect();
+    )
+    .with_context(|| legend.clone())?;
     println!(
-        "robot {} ({}), moving joints {}; {} base parameters; {} free coefficients; limit grid {} points",
+        "robot {} ({}), {}; {} base parameters; {} free coefficients; limit grid {} points",
         robot.name,
         a.robot.display(),
-        moving.join(", "),
+        legend,
         model.base().count(),
         family.dimension(),
         family.grid_points()
     );
-    let d = design(&model, family.clone(), &settings)?;
+    let d = design(&model, family.clone(), &settings).with_context(|| legend.clone())?;
     let random_cond = if a.zero_at.is_empty() {
-        Some(condition_number(&observation_matrix(&model, &random_feasible(&family, a.seed ^ 0xBA5E), a.rate)))
+        Some(condition_number(&observation_matrix(
+            &model,
+            &random_feasible(&family, a.seed ^ 0xBA5E),
+            a.rate,
+        )))
     } else {
         None
     };
-    println!("{:>3} {:>20} {:>12} {:>8}  stopped", "run", "seed", "best_cost", "evals");
+    println!(
+        "{:>3} {:>20} {:>12} {:>8}  stopped",
+        "run", "seed", "best_cost", "evals"
+    );
     for (i, r) in d.restarts.iter().enumerate() {
-        println!("{:>3} {:>20} {:>12.5} {:>8}  {}", i, r.seed, r.best_cost, r.evaluations, r.stopped_because);
+        println!(
+            "{:>3} {:>20} {:>12.5} {:>8}  {}",
+            i, r.seed, r.best_cost, r.evaluations, r.stopped_because
+        );
     }
     println!(
         "best: condition number {:.3}, log det(W'W/n) {:.3}; {} evaluations in {:.1} s",
@@ -192,7 +211,10 @@ pub fn run(a: &ExciteArgs) -> anyhow::Result<()> {
             rc / d.score.condition
         );
     }
-    println!("{:>5} {:<30} {:>12} {:>12} {:>12} {:>8}", "joint", "limit", "limit", "extreme", "margin", "use");
+    println!(
+        "{:>5} {:<30} {:>12} {:>12} {:>12} {:>8}",
+        "joint", "limit", "limit", "extreme", "margin", "use"
+    );
     for m in &d.margins {
         println!(
             "{:>5} {:<30} {:>12.4} {:>12.4} {:>12.4} {:>7.1}%",

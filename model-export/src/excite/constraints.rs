@@ -150,9 +150,13 @@ impl Grid {
         let mut row = vec![0.0; width];
         for i in 0..points {
             let t = i as f64 * dt;
-            for (d, m) in [Derivative::Position, Derivative::Velocity, Derivative::Acceleration]
-                .into_iter()
-                .zip(g.iter_mut())
+            for (d, m) in [
+                Derivative::Position,
+                Derivative::Velocity,
+                Derivative::Acceleration,
+            ]
+            .into_iter()
+            .zip(g.iter_mut())
             {
                 basis(d, harmonics, omega, t, &mut row);
                 for (c, v) in row.iter().enumerate() {
@@ -163,7 +167,11 @@ impl Grid {
         let joints = spaces
             .iter()
             .map(|s| JointGrid {
-                base: [&g[0] * &s.particular, &g[1] * &s.particular, &g[2] * &s.particular],
+                base: [
+                    &g[0] * &s.particular,
+                    &g[1] * &s.particular,
+                    &g[2] * &s.particular,
+                ],
                 dirs: [&g[0] * &s.null, &g[1] * &s.null, &g[2] * &s.null],
             })
             .collect();
@@ -241,18 +249,22 @@ impl FourierFamily {
                 && l.qd_max_rad_s > 0.0
                 && l.qdd_max_rad_s2 > 0.0;
             if !ok {
-                return Err(ExciteError::Invalid(format!("joint {j}: invalid limits {l:?}")));
+                return Err(ExciteError::Invalid(format!(
+                    "moving joint #{j}: invalid limits {l:?}"
+                )));
             }
             if !(rest_rad[j] >= l.q_min_rad && rest_rad[j] <= l.q_max_rad) {
                 return Err(ExciteError::Infeasible(format!(
-                    "joint {j}: rest pose {} rad lies outside the position limits [{}, {}] rad",
+                    "moving joint #{j}: rest pose {} rad lies outside the position limits [{}, {}] rad",
                     rest_rad[j], l.q_min_rad, l.q_max_rad
                 )));
             }
         }
         for pc in extra {
             if pc.joint >= n || !pc.t_s.is_finite() || !pc.value.is_finite() {
-                return Err(ExciteError::Invalid(format!("invalid point constraint {pc:?}")));
+                return Err(ExciteError::Invalid(format!(
+                    "invalid point constraint {pc:?}"
+                )));
             }
         }
         let omega = TAU / period_s;
@@ -275,7 +287,15 @@ impl FourierFamily {
                 let name = format!("{:?}({} s) = {}", pc.derivative, pc.t_s, pc.value);
                 rows.push((r, pc.value, name));
             }
-            spaces.push(solve_joint_space(j, &rows, rest_rad[j], width, harmonics, omega, &limits[j])?);
+            spaces.push(solve_joint_space(
+                j,
+                &rows,
+                rest_rad[j],
+                width,
+                harmonics,
+                omega,
+                &limits[j],
+            )?);
         }
         let mut offsets = Vec::with_capacity(n + 1);
         let mut acc = 0;
@@ -360,7 +380,8 @@ impl FourierFamily {
     /// The particular part `c_p` and direction part `Z·x` of joint `j` on the dense grid.
     fn grid_parts<'g>(&self, grid: &'g Grid, x: &[f64], j: usize) -> (&'g GridValues, GridValues) {
         let s = &self.spaces[j];
-        let xj = DVector::from_column_slice(&x[self.offsets[j]..self.offsets[j + 1]]) * s.amplitude_rad;
+        let xj =
+            DVector::from_column_slice(&x[self.offsets[j]..self.offsets[j + 1]]) * s.amplitude_rad;
         let gr = &grid.joints[j];
         let dirs = [&gr.dirs[0] * &xj, &gr.dirs[1] * &xj, &gr.dirs[2] * &xj];
         (&gr.base, dirs)
@@ -507,7 +528,7 @@ fn solve_joint_space(
     let m = rows.len();
     if m >= width {
         return Err(ExciteError::Infeasible(format!(
-            "joint {joint}: {m} equality constraints leave no free coefficient out of {width}; \
+            "moving joint #{joint}: {m} equality constraints leave no free coefficient out of {width}; \
              use more harmonics or fewer point constraints"
         )));
     }
@@ -520,7 +541,7 @@ fn solve_joint_space(
         if resid > 1e-9 {
             let earlier: Vec<&str> = rows[..used - 1].iter().map(|r| r.2.as_str()).collect();
             return Err(ExciteError::Infeasible(format!(
-                "joint {joint}: equality constraints are inconsistent: `{}` cannot hold together \
+                "moving joint #{joint}: equality constraints are inconsistent: `{}` cannot hold together \
                  with {} (residual {resid:.3e})",
                 rows[used - 1].2,
                 earlier.join(", ")
@@ -531,7 +552,7 @@ fn solve_joint_space(
     let (particular, null_cols) = solved.expect("at least the start conditions");
     if null_cols.is_empty() {
         return Err(ExciteError::Infeasible(format!(
-            "joint {joint}: the equality constraints fix every coefficient; nothing left to optimise"
+            "moving joint #{joint}: the equality constraints fix every coefficient; nothing left to optimise"
         )));
     }
     let null = DMatrix::from_columns(&null_cols);
@@ -604,7 +625,9 @@ mod tests {
         }];
         let fam = family(&zero_at);
         assert_eq!(fam.dimension(), 8 + 7);
-        let x: Vec<f64> = (0..fam.dimension()).map(|i| ((i * 7919) % 13) as f64 / 6.0 - 1.0).collect();
+        let x: Vec<f64> = (0..fam.dimension())
+            .map(|i| ((i * 7919) % 13) as f64 / 6.0 - 1.0)
+            .collect();
         let tr = fam.trajectory(&x, 0.7);
         for t in [0.0, 10.0] {
             let p = tr.eval(t);
@@ -640,6 +663,9 @@ mod tests {
         let err = FourierFamily::new(10.0, 5, &[0.0], &limits, &bad, 1000.0).unwrap_err();
         assert!(err.to_string().contains("Position(10 s) = 1"), "{err}");
         let out = FourierFamily::new(10.0, 5, &[3.0], &limits, &[], 1000.0).unwrap_err();
-        assert!(out.to_string().contains("outside the position limits"), "{out}");
+        assert!(
+            out.to_string().contains("outside the position limits"),
+            "{out}"
+        );
     }
 }

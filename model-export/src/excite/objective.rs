@@ -105,7 +105,8 @@ impl<'m, M: ObservationModel + ?Sized> ObservationEvaluator<'m, M> {
         for k in 0..self.samples {
             let t = k as f64 * tr.period_s / self.samples as f64;
             tr.eval_into(t, &mut self.q, &mut self.qd, &mut self.qdd);
-            self.model.rows(&self.q, &self.qd, &self.qdd, &mut self.rows);
+            self.model
+                .rows(&self.q, &self.qd, &self.qdd, &mut self.rows);
             // Wᵀ W += rowsᵀ rows (upper triangle, mirrored below).
             for row in self.rows.chunks_exact(p).take(r) {
                 for a in 0..p {
@@ -156,7 +157,11 @@ pub fn observation_matrix<M: ObservationModel + ?Sized>(
     rate_hz: f64,
 ) -> DMatrix<f64> {
     let samples = (tr.period_s * rate_hz).round().max(1.0) as usize;
-    let (p, r, n) = (model.parameter_count(), model.rows_per_sample(), model.joint_count());
+    let (p, r, n) = (
+        model.parameter_count(),
+        model.rows_per_sample(),
+        model.joint_count(),
+    );
     let mut w = DMatrix::zeros(samples * r, p);
     let (mut q, mut qd, mut qdd) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
     let mut rows = vec![0.0; r * p];

@@ -16,7 +16,9 @@ use super::objective::{
     Criterion, ExcitationScore, ObservationEvaluator, ObservationModel, condition_number,
     observation_matrix,
 };
-use super::trajectory::{DEFAULT_HARMONICS, DEFAULT_PERIOD_S, DEFAULT_RATE_HZ, ExcitationTrajectory};
+use super::trajectory::{
+    DEFAULT_HARMONICS, DEFAULT_PERIOD_S, DEFAULT_RATE_HZ, ExcitationTrajectory,
+};
 use cmaes::{CMAESOptions, DVector, TerminationReason};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -172,11 +174,12 @@ fn ensure_feasible_start(
         }
     }
     *evaluations += count.get();
-    let (value, x) = best.ok_or_else(|| ExciteError::Invalid("feasibility search failed".into()))?;
+    let (value, x) =
+        best.ok_or_else(|| ExciteError::Invalid("feasibility search failed".into()))?;
     if value > 1.0 {
         let t = tightest(&family.margins(&x, 1.0)).expect("at least one joint");
         return Err(ExciteError::Infeasible(format!(
-            "no trajectory meets every limit; the tightest constraint is joint {} {}: \
+            "no trajectory meets every limit; the tightest constraint is moving joint #{} {}: \
              best reached {:.4} against the limit {:.4} (utilisation {:.3})",
             t.joint,
             t.kind.describe(),
@@ -259,7 +262,8 @@ pub fn design<M: ObservationModel + ?Sized>(
             best = Some((ind.value, x, s));
         }
     }
-    let (_, x, s) = best.ok_or_else(|| ExciteError::Invalid("the optimiser returned no point".into()))?;
+    let (_, x, s) =
+        best.ok_or_else(|| ExciteError::Invalid("the optimiser returned no point".into()))?;
     let trajectory = family.trajectory(&x, s);
     let margins = family.margins(&x, s);
     let score = final_score(model, &trajectory, settings.rate_hz);
@@ -267,7 +271,7 @@ pub fn design<M: ObservationModel + ?Sized>(
         let t = tightest(&margins).expect("at least one joint");
         return Err(ExciteError::Infeasible(format!(
             "no feasible trajectory excites every parameter (observation matrix rank-deficient); \
-             the tightest constraint is joint {} {} (utilisation {:.3})",
+             the tightest constraint is moving joint #{} {} (utilisation {:.3})",
             t.joint,
             t.kind.describe(),
             t.utilisation

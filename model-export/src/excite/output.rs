@@ -114,7 +114,12 @@ impl ExcitationFile {
         let text = std::fs::read_to_string(path)
             .map_err(|e| ExciteError::Io(format!("{}: {e}", path.display())))?;
         let f: Self = serde_json::from_str(&text).map_err(|e| {
-            ExciteError::Invalid(format!("{}: line {}, column {}: {e}", path.display(), e.line(), e.column()))
+            ExciteError::Invalid(format!(
+                "{}: line {}, column {}: {e}",
+                path.display(),
+                e.line(),
+                e.column()
+            ))
         })?;
         if f.format != FORMAT || f.version != FORMAT_VERSION {
             return Err(ExciteError::Invalid(format!(
@@ -164,12 +169,17 @@ pub fn playback_header(joints: usize) -> Vec<String> {
     h
 }
 
-fn playback_csv(layout: &PlaybackLayout, sampled: &SampledTrajectory) -> Result<Vec<u8>, ExciteError> {
+fn playback_csv(
+    layout: &PlaybackLayout,
+    sampled: &SampledTrajectory,
+) -> Result<Vec<u8>, ExciteError> {
     let mut w = csv::Writer::from_writer(Vec::new());
     let io = |e: csv::Error| ExciteError::Io(e.to_string());
-    w.write_record(playback_header(layout.joint_names.len())).map_err(io)?;
+    w.write_record(playback_header(layout.joint_names.len()))
+        .map_err(io)?;
     for row in playback(layout, sampled) {
-        w.write_record(row.iter().map(|v| format!("{v:e}"))).map_err(io)?;
+        w.write_record(row.iter().map(|v| format!("{v:e}")))
+            .map_err(io)?;
     }
     w.into_inner().map_err(|e| ExciteError::Io(e.to_string()))
 }
@@ -187,18 +197,27 @@ pub fn plot_svg(
         let root = SVGBackend::with_string(&mut svg, (900, 960)).into_drawing_area();
         let err = |e: &dyn std::fmt::Display| ExciteError::Io(format!("plot: {e}"));
         root.fill(&WHITE).map_err(|e| err(&e))?;
-        let root = root.titled(title, ("sans-serif", 22)).map_err(|e| err(&e))?;
+        let root = root
+            .titled(title, ("sans-serif", 22))
+            .map_err(|e| err(&e))?;
         let panels = root.split_evenly((3, 1));
         let t_end = *sampled.t_s.last().unwrap_or(&1.0);
         // Velocity and acceleration panels also show each joint's limits (dashed).
         type LimitOf = fn(&JointLimits) -> Option<f64>;
         let series: [(&str, &Vec<Vec<f64>>, LimitOf); 3] = [
             ("position (rad)", &sampled.q_rad, |_| None),
-            ("velocity (rad/s)", &sampled.qd_rad_s, |l| Some(l.qd_max_rad_s)),
-            ("acceleration (rad/s^2)", &sampled.qdd_rad_s2, |l| Some(l.qdd_max_rad_s2)),
+            ("velocity (rad/s)", &sampled.qd_rad_s, |l| {
+                Some(l.qd_max_rad_s)
+            }),
+            ("acceleration (rad/s^2)", &sampled.qdd_rad_s2, |l| {
+                Some(l.qdd_max_rad_s2)
+            }),
         ];
         for (panel, (label, data, limit_of)) in panels.iter().zip(series.iter()) {
-            let data_max = data.iter().flat_map(|r| r.iter()).fold(1e-6f64, |m, v| m.max(v.abs()));
+            let data_max = data
+                .iter()
+                .flat_map(|r| r.iter())
+                .fold(1e-6f64, |m, v| m.max(v.abs()));
             let limit_max = limits.iter().filter_map(limit_of).fold(0.0f64, f64::max);
             let ymax = data_max.max(limit_max) * 1.1;
             let mut chart = ChartBuilder::on(panel)
@@ -222,7 +241,9 @@ pub fn plot_svg(
                     ))
                     .map_err(|e| err(&e))?
                     .label(name.as_str())
-                    .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2)));
+                    .legend(move |(x, y)| {
+                        PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
+                    });
                 if let Some(lim) = limits.get(j).and_then(limit_of) {
                     for sign in [-1.0, 1.0] {
                         let dashes = (0..40).map(|i| {

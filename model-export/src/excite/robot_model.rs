@@ -30,8 +30,9 @@ impl RobotObservation {
                 robot.source.display()
             )));
         }
-        let base = BaseParameters::compute(&robot, BASE_PARAMETER_SEED)
-            .map_err(|e| ExciteError::Invalid(format!("{}: base parameters: {e}", robot.source.display())))?;
+        let base = BaseParameters::compute(&robot, BASE_PARAMETER_SEED).map_err(|e| {
+            ExciteError::Invalid(format!("{}: base parameters: {e}", robot.source.display()))
+        })?;
         Ok(Self { robot, base })
     }
 

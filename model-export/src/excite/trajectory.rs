@@ -61,9 +61,19 @@ pub enum Derivative {
 
 /// Basis row at time `t_s`: the value of the chosen derivative is `basis · [q0, a, b]`.
 /// `out` has length `1 + 2N`.
-pub fn basis(derivative: Derivative, harmonics: usize, omega_rad_s: f64, t_s: f64, out: &mut [f64]) {
+pub fn basis(
+    derivative: Derivative,
+    harmonics: usize,
+    omega_rad_s: f64,
+    t_s: f64,
+    out: &mut [f64],
+) {
     debug_assert_eq!(out.len(), 1 + 2 * harmonics);
-    out[0] = if derivative == Derivative::Position { 1.0 } else { 0.0 };
+    out[0] = if derivative == Derivative::Position {
+        1.0
+    } else {
+        0.0
+    };
     for k in 1..=harmonics {
         let w = k as f64 * omega_rad_s;
         let (s, c) = (w * t_s).sin_cos();
@@ -214,7 +224,11 @@ mod tests {
             for j in 0..2 {
                 let v = (p.q_rad[j] - m.q_rad[j]) / (2.0 * h);
                 let a = (p.qd_rad_s[j] - m.qd_rad_s[j]) / (2.0 * h);
-                assert!((v - c.qd_rad_s[j]).abs() < 1e-7, "velocity {v} vs {}", c.qd_rad_s[j]);
+                assert!(
+                    (v - c.qd_rad_s[j]).abs() < 1e-7,
+                    "velocity {v} vs {}",
+                    c.qd_rad_s[j]
+                );
                 assert!((a - c.qdd_rad_s2[j]).abs() < 1e-7, "acceleration {a}");
             }
         }
