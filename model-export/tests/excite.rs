@@ -56,12 +56,8 @@ fn assert_admissible(tr: &ExcitationTrajectory, rest: &[f64], lim: &[JointLimits
     }
     for t in [0.0, tr.period_s] {
         let p = tr.eval(t);
-        for j in 0..rest.len() {
-            assert!(
-                (p.q_rad[j] - rest[j]).abs() < 1e-9,
-                "q{j}({t}) = {}",
-                p.q_rad[j]
-            );
+        for (j, r) in rest.iter().enumerate() {
+            assert!((p.q_rad[j] - r).abs() < 1e-9, "q{j}({t}) = {}", p.q_rad[j]);
             assert!(p.qd_rad_s[j].abs() < 1e-9, "qd{j}({t}) = {}", p.qd_rad_s[j]);
             assert!(
                 p.qdd_rad_s2[j].abs() < 1e-9,

@@ -109,13 +109,12 @@ impl<'m, M: ObservationModel + ?Sized> ObservationEvaluator<'m, M> {
                 .rows(&self.q, &self.qd, &self.qdd, &mut self.rows);
             // Wᵀ W += rowsᵀ rows (upper triangle, mirrored below).
             for row in self.rows.chunks_exact(p).take(r) {
-                for a in 0..p {
-                    let ra = row[a];
+                for (a, &ra) in row.iter().enumerate() {
                     if ra == 0.0 {
                         continue;
                     }
-                    for b in a..p {
-                        self.gram[(a, b)] += ra * row[b];
+                    for (b, &rb) in row.iter().enumerate().skip(a) {
+                        self.gram[(a, b)] += ra * rb;
                     }
                 }
             }
@@ -134,7 +133,7 @@ impl<'m, M: ObservationModel + ?Sized> ObservationEvaluator<'m, M> {
             lmax = lmax.max(l);
             log_det += (l / n).ln();
         }
-        if !(lmin > lmax * 1e-28) || !lmin.is_finite() {
+        if lmin.is_nan() || lmin <= lmax * 1e-28 || !lmin.is_finite() {
             return ExcitationScore {
                 condition: f64::INFINITY,
                 log_det: f64::NEG_INFINITY,
