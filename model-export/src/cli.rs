@@ -30,7 +30,7 @@ pub enum Command {
     /// parameters or an identified model (firmware f32 model); write them as CSV.
     Torque(Box<crate::identify::commands::TorqueArgs>),
     /// Design an optimised Fourier excitation trajectory (coefficients JSON, playback CSV, plot).
-    Excite(crate::excite::cli::ExciteArgs),
+    Excite(Box<crate::excite::cli::ExciteArgs>),
 }
 
 /// Runs one parsed command line.
