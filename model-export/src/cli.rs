@@ -53,6 +53,8 @@ pub enum Command {
     /// Import a model saved from PyTorch (safetensors, PyTorch names; see the README),
     /// validate it and write it in our format; optionally check it against a reference.
     Import(ImportArgs),
+    /// Design an optimised Fourier excitation trajectory (coefficients JSON, playback CSV, plot).
+    Excite(Box<crate::excite::cli::ExciteArgs>),
 }
 
 /// Which columns the network reads and predicts.
@@ -350,6 +352,7 @@ fn import_cmd(a: ImportArgs) -> Result<()> {
 /// Runs one parsed command line.
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
+        Command::Excite(args) => crate::excite::cli::run(&args),
         Command::Primitives { points } => {
             println!("{:>10} {:>12} {:>12} {:>12}", "x", "exp", "tanh", "sigmoid");
             for i in 0..points {

@@ -1,0 +1,256 @@
+//! `model-export excite`: design an optimised excitation trajectory for a robot.
+
+use super::constraints::{FourierFamily, PointConstraint, tightest};
+use super::objective::{Criterion, condition_number, observation_matrix};
+use super::optimise::{ExcitationSettings, design, random_feasible};
+use super::output::{ExcitationFile, OutputPaths, write_outputs};
+use super::robot_model::{LimitOverrides, RobotObservation, joint_limits, playback_layout};
+use super::trajectory::Derivative;
+use crate::robot::Robot;
+use anyhow::{Context, bail};
+use std::path::PathBuf;
+
+/// Arguments of `model-export excite`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct ExciteArgs {
+    /// Robot description (DH TOML or URDF).
+    #[arg(long, default_value = "model-export/robots/default.toml")]
+    pub robot: PathBuf,
+    /// Moving joints: `file` (the robot file's selection), `wrist` (the paper: joints 1-3
+    /// locked at zero, 4.. moving), `all`, or a 1-based list such as `4,5,6` (others locked at
+    /// zero).
+    #[arg(long, default_value = "file")]
+    pub joints: String,
+    /// Number of harmonics N.
+    #[arg(long, default_value_t = 5)]
+    pub harmonics: usize,
+    /// Period T in s (ω_f = 2π/T); the trajectory lasts one period.
+    #[arg(long, default_value_t = 10.0)]
+    pub period: f64,
+    /// Controller (playback CSV) rate in Hz.
+    #[arg(long, default_value_t = 100.0)]
+    pub rate: f64,
+    /// Limit-check grid rate as a multiple of the controller rate (at least 10).
+    #[arg(long, default_value_t = 10)]
+    pub check_factor: usize,
+    /// Criterion: the condition number (the paper) or the D-optimal log-determinant.
+    #[arg(long, value_enum, default_value_t = Criterion::Condition)]
+    pub criterion: Criterion,
+    /// Independent seeded CMA-ES runs.
+    #[arg(long, default_value_t = 4)]
+    pub restarts: usize,
+    /// Objective evaluations per run.
+    #[arg(long, default_value_t = 6000)]
+    pub evaluations: usize,
+    /// Samples per period when scoring a candidate during the search.
+    #[arg(long, default_value_t = 200)]
+    pub samples: usize,
+    /// Master seed.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Rest pose of the moving joints in rad, comma-separated (default: all zero).
+    #[arg(long, value_delimiter = ',')]
+    pub rest: Option<Vec<f64>>,
+    /// Extra constraint q_i(t) = 0 on every moving joint at this time in s (repeatable; the
+    /// paper's test trajectory uses 3.8).
+    #[arg(long)]
+    pub zero_at: Vec<f64>,
+    /// Symmetric position limit in rad (intersected with the robot file's).
+    #[arg(long)]
+    pub q_max: Option<f64>,
+    /// Velocity limit in rad/s (replaces the robot file's).
+    #[arg(long)]
+    pub qd_max: Option<f64>,
+    /// Acceleration limit in rad/s² (replaces the robot file's).
+    #[arg(long)]
+    pub qdd_max: Option<f64>,
+    /// Output directory.
+    #[arg(long, default_value = ".")]
+    pub out_dir: PathBuf,
+    /// Base name of the outputs: `<name>.json`, `<name>.csv`, `<name>.svg`.
+    #[arg(long, default_value = "excitation")]
+    pub name: String,
+    /// Do not write the SVG plot.
+    #[arg(long)]
+    pub no_plot: bool,
+}
+
+fn select_joints(robot: &mut Robot, spec: &str) -> anyhow::Result<()> {
+    match spec {
+        "file" => {}
+        "wrist" => *robot = robot.default_paper_selection(),
+        "all" => robot.model_all_joints(),
+        list => {
+            let picked: Vec<usize> = list
+                .split(',')
+                .map(|s| s.trim().parse::<usize>())
+                .collect::<Result<_, _>>()
+                .with_context(|| {
+                    format!("--joints `{list}`: expected file, wrist, all or a list like 4,5,6")
+                })?;
+            for &p in &picked {
+                if p == 0 || p > robot.dof() {
+                    bail!(
+                        "--joints: joint {p} does not exist (the robot has {} joints)",
+                        robot.dof()
+                    );
+                }
+            }
+            for i in 0..robot.dof() {
+                if picked.contains(&(i + 1)) {
+                    robot.joints[i].mode = crate::robot::JointMode::Modelled;
+                } else {
+                    robot.lock_joint(i, 0.0);
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Runs `model-export excite`.
+pub fn run(a: &ExciteArgs) -> anyhow::Result<()> {
+    if a.check_factor < 10 {
+        bail!("--check-factor {}: must be at least 10", a.check_factor);
+    }
+    if !(a.rate.is_finite() && a.rate > 0.0) {
+        bail!("--rate {}: must be positive", a.rate);
+    }
+    let mut robot = Robot::load(&a.robot).map_err(|e| anyhow::anyhow!("{e}"))?;
+    select_joints(&mut robot, &a.joints)?;
+    let model = RobotObservation::new(robot)?;
+    let robot = model.robot();
+    let overrides = LimitOverrides {
+        q_max_rad: a.q_max,
+        qd_max_rad_s: a.qd_max,
+        qdd_max_rad_s2: a.qdd_max,
+    };
+    let limits = joint_limits(robot, &overrides)?;
+    let n = limits.len();
+    let rest = a.rest.clone().unwrap_or_else(|| vec![0.0; n]);
+    if rest.len() != n {
+        bail!("--rest: {} values for {n} moving joints", rest.len());
+    }
+    let extra: Vec<PointConstraint> = a
+        .zero_at
+        .iter()
+        .flat_map(|&t| {
+            (0..n).map(move |j| PointConstraint {
+                joint: j,
+                t_s: t,
+                derivative: Derivative::Position,
+                value: 0.0,
+            })
+        })
+        .collect();
+    let settings = ExcitationSettings {
+        harmonics: a.harmonics,
+        period_s: a.period,
+        rate_hz: a.rate,
+        check_factor: a.check_factor,
+        objective_samples: a.samples,
+        criterion: a.criterion,
+        restarts: a.restarts,
+        evaluations_per_restart: a.evaluations,
+        seed: a.seed,
+        ..ExcitationSettings::default()
+    };
+    let legend = robot
+        .modelled_joints()
+        .iter()
+        .enumerate()
+        .map(|(m, &i)| format!("#{m} = joint {} ({})", i + 1, robot.joints[i].name))
+        .collect::<Vec<_>>()
+        .join(", ");
+    let legend = format!("moving joints {legend}");
+    let family = FourierFamily::new(
+        a.period,
+        a.harmonics,
+        &rest,
+        &limits,
+        &extra,
+        a.rate * a.check_factor as f64,
+    )
+    .with_context(|| legend.clone())?;
+    println!(
+        "robot {} ({}), {}; {} base parameters; {} free coefficients; limit grid {} points",
+        robot.name,
+        a.robot.display(),
+        legend,
+        model.base().count(),
+        family.dimension(),
+        family.grid_points()
+    );
+    let d = design(&model, family.clone(), &settings).with_context(|| legend.clone())?;
+    let random_cond = if a.zero_at.is_empty() {
+        Some(condition_number(&observation_matrix(
+            &model,
+            &random_feasible(&family, a.seed ^ 0xBA5E),
+            a.rate,
+        )))
+    } else {
+        None
+    };
+    println!(
+        "{:>3} {:>20} {:>12} {:>8}  stopped",
+        "run", "seed", "best_cost", "evals"
+    );
+    for (i, r) in d.restarts.iter().enumerate() {
+        println!(
+            "{:>3} {:>20} {:>12.5} {:>8}  {}",
+            i, r.seed, r.best_cost, r.evaluations, r.stopped_because
+        );
+    }
+    println!(
+        "best: condition number {:.3}, log det(W'W/n) {:.3}; {} evaluations in {:.1} s",
+        d.score.condition, d.score.log_det, d.evaluations, d.seconds
+    );
+    if let Some(rc) = random_cond {
+        println!(
+            "random feasible trajectory of the same family: condition number {rc:.3} ({:.1}x worse)",
+            rc / d.score.condition
+        );
+    }
+    println!(
+        "{:>5} {:<30} {:>12} {:>12} {:>12} {:>8}",
+        "joint", "limit", "limit", "extreme", "margin", "use"
+    );
+    for m in &d.margins {
+        println!(
+            "{:>5} {:<30} {:>12.4} {:>12.4} {:>12.4} {:>7.1}%",
+            robot.modelled_joints()[m.joint] + 1,
+            m.kind.describe(),
+            m.limit,
+            m.extreme,
+            m.margin,
+            100.0 * m.utilisation
+        );
+    }
+    if let Some(t) = tightest(&d.margins) {
+        println!(
+            "tightest: joint {} {} at {:.1}%",
+            robot.modelled_joints()[t.joint] + 1,
+            t.kind.describe(),
+            100.0 * t.utilisation
+        );
+    }
+    let layout = playback_layout(robot, &rest);
+    let file = ExcitationFile::new(&robot.name, layout, &limits, &extra, &d, random_cond);
+    std::fs::create_dir_all(&a.out_dir).with_context(|| format!("{}", a.out_dir.display()))?;
+    let paths = OutputPaths {
+        json: a.out_dir.join(format!("{}.json", a.name)),
+        csv: a.out_dir.join(format!("{}.csv", a.name)),
+        plot: (!a.no_plot).then(|| a.out_dir.join(format!("{}.svg", a.name))),
+    };
+    let labels: Vec<String> = robot
+        .modelled_joints()
+        .iter()
+        .map(|&i| format!("joint {}", i + 1))
+        .collect();
+    write_outputs(&file, &labels, &paths)?;
+    println!("wrote {}, {}", paths.json.display(), paths.csv.display());
+    if let Some(p) = &paths.plot {
+        println!("wrote {}", p.display());
+    }
+    Ok(())
+}

@@ -1,0 +1,294 @@
+//! Excitation design on a real 6-DoF description: the paper's wrist case (joints 1-3 locked at
+//! zero, 4-6 moving) and all six joints. The robot is `model-export/robots/default.toml` when
+//! present, else the UR10e URDF under `$DATASETS_DIR` (default `../shared/datasets` beside the
+//! workspace); the tests print a skip line and pass when neither exists.
+
+use model_export::excite::objective::{condition_number, observation_matrix};
+use model_export::excite::robot_model::{LimitOverrides, RobotObservation, joint_limits};
+use model_export::excite::{
+    ExcitationSettings, FourierFamily, JointLimits, design, random_feasible,
+};
+use model_export::robot::Robot;
+use std::path::PathBuf;
+
+fn test_robot() -> Option<(Robot, LimitOverrides)> {
+    let manifest = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    let default = manifest.join("robots/default.toml");
+    if default.exists() {
+        return Some((
+            Robot::load(&default).expect("default robot loads"),
+            LimitOverrides::default(),
+        ));
+    }
+    let datasets = std::env::var_os("DATASETS_DIR")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| manifest.join("../../shared/datasets"));
+    let urdf = datasets.join("ur10e/ur10e.urdf");
+    if urdf.exists() {
+        // The URDF gives no acceleration limits: use 8 rad/s² (the default robot's estimate).
+        let o = LimitOverrides {
+            qdd_max_rad_s2: Some(8.0),
+            ..LimitOverrides::default()
+        };
+        return Some((Robot::load(&urdf).expect("UR10e URDF loads"), o));
+    }
+    println!(
+        "skipped: neither robots/default.toml nor {} exists",
+        urdf.display()
+    );
+    None
+}
+
+fn check(robot: Robot, overrides: &LimitOverrides, budget: usize, label: &str) -> (f64, f64) {
+    let model = RobotObservation::new(robot).unwrap();
+    let limits: Vec<JointLimits> = joint_limits(model.robot(), overrides).unwrap();
+    let n = limits.len();
+    let rest = vec![0.0; n];
+    let settings = ExcitationSettings {
+        restarts: 1,
+        evaluations_per_restart: budget,
+        objective_samples: 100,
+        ..ExcitationSettings::default()
+    };
+    let family = FourierFamily::new(10.0, 5, &rest, &limits, &[], 1000.0).unwrap();
+    let d = design(&model, family.clone(), &settings).unwrap();
+    assert!(
+        d.margins.iter().all(|m| m.margin >= -1e-9),
+        "{:?}",
+        d.margins
+    );
+    let mut random: Vec<f64> = (0..5)
+        .map(|s| {
+            condition_number(&observation_matrix(
+                &model,
+                &random_feasible(&family, 50 + s),
+                100.0,
+            ))
+        })
+        .collect();
+    random.sort_by(f64::total_cmp);
+    println!(
+        "{label}: {} base parameters, optimised cond {:.1} ({} evaluations, {:.1} s), random feasible cond median {:.1} (best {:.1})",
+        model.parameter_count_public(),
+        d.score.condition,
+        d.evaluations,
+        d.seconds,
+        random[2],
+        random[0]
+    );
+    (d.score.condition, random[2])
+}
+
+trait Count {
+    fn parameter_count_public(&self) -> usize;
+}
+impl Count for RobotObservation {
+    fn parameter_count_public(&self) -> usize {
+        self.base().count()
+    }
+}
+
+#[test]
+fn wrist_design_beats_random_feasible_trajectories() {
+    let Some((robot, o)) = test_robot() else {
+        return;
+    };
+    let (opt, random) = check(
+        robot.default_paper_selection(),
+        &o,
+        1500,
+        "wrist (joints 4-6)",
+    );
+    assert!(opt * 2.0 < random, "optimised {opt} vs random {random}");
+}
+
+#[test]
+fn six_joint_design_beats_random_feasible_trajectories() {
+    let Some((mut robot, o)) = test_robot() else {
+        return;
+    };
+    robot.model_all_joints();
+    let (opt, random) = check(robot, &o, 1500, "6 joints");
+    assert!(opt * 3.0 < random, "optimised {opt} vs random {random}");
+}
+
+/// Identifies the wrist's base parameters from noisy torques along a trajectory (3 periods at
+/// 100 Hz, Gaussian noise 0.5 N·m per joint, seeded) and returns (values, std, true values).
+fn identify_along(
+    model: &RobotObservation,
+    tr: &model_export::excite::ExcitationTrajectory,
+    noise_nm: f64,
+    seed: u64,
+) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+    use model_export::excite::ObservationModel;
+    use model_export::identify::{IdentifyOptions, NormalEquations, solve};
+    use rand::SeedableRng;
+    use rand_distr::{Distribution, Normal};
+    let beta = model.base().beta(&model.robot().standard_parameters());
+    let (n, p) = (model.joint_count(), model.parameter_count());
+    let mut ne = NormalEquations::new(n, p);
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let noise = Normal::new(0.0, noise_nm).unwrap();
+    let mut rows = vec![0.0; n * p];
+    let s = tr.sample(100.0, 3);
+    for k in 0..s.t_s.len() {
+        model.rows(&s.q_rad[k], &s.qd_rad_s[k], &s.qdd_rad_s2[k], &mut rows);
+        let tau: Vec<f64> = (0..n)
+            .map(|j| {
+                let clean: f64 = (0..p).map(|c| rows[j * p + c] * beta[c]).sum();
+                clean
+                    + if noise_nm > 0.0 {
+                        noise.sample(&mut rng)
+                    } else {
+                        0.0
+                    }
+            })
+            .collect();
+        ne.add_sample(&rows, &tau);
+    }
+    let id =
+        solve(&mut ne, &model.base().names(), &IdentifyOptions::default()).expect("identifiable");
+    (id.values, id.std, beta.iter().copied().collect())
+}
+
+#[test]
+fn identification_along_the_optimised_trajectory_is_more_precise() {
+    let Some((robot, o)) = test_robot() else {
+        return;
+    };
+    let model = RobotObservation::new(robot.default_paper_selection()).unwrap();
+    let limits = joint_limits(model.robot(), &o).unwrap();
+    let rest = vec![0.0; limits.len()];
+    let settings = ExcitationSettings {
+        restarts: 1,
+        evaluations_per_restart: 1500,
+        objective_samples: 100,
+        ..ExcitationSettings::default()
+    };
+    let family = FourierFamily::new(10.0, 5, &rest, &limits, &[], 1000.0).unwrap();
+    let optimised = design(&model, family.clone(), &settings)
+        .unwrap()
+        .trajectory;
+    let random = random_feasible(&family, 52);
+
+    // Noise-free data along the optimised trajectory: exact recovery.
+    let (v, _, truth) = identify_along(&model, &optimised, 0.0, 1);
+    for (i, (v, t)) in v.iter().zip(&truth).enumerate() {
+        assert!(
+            (v - t).abs() <= 1e-6 * t.abs().max(1e-3),
+            "b{}: {v} vs {t}",
+            i + 1
+        );
+    }
+    // Noisy data: every estimate within 3 standard deviations, and smaller deviations along
+    // the optimised trajectory than along the random one.
+    let (v_opt, s_opt, truth) = identify_along(&model, &optimised, 0.5, 2);
+    let (_, s_rand, _) = identify_along(&model, &random, 0.5, 2);
+    for i in 0..v_opt.len() {
+        let err = (v_opt[i] - truth[i]).abs();
+        assert!(
+            err < 3.0 * s_opt[i],
+            "b{}: error {err} vs std {}",
+            i + 1,
+            s_opt[i]
+        );
+    }
+    let trace = |s: &[f64]| s.iter().map(|x| x * x).sum::<f64>();
+    let worst = |s: &[f64]| s.iter().copied().fold(0.0, f64::max);
+    let smaller = s_opt.iter().zip(&s_rand).filter(|(a, b)| a < b).count();
+    println!(
+        "wrist identification, 0.5 N*m noise: sum of variances {:.3e} (optimised) vs {:.3e} (random); largest std {:.3e} vs {:.3e}; {smaller}/{} parameters more precise",
+        trace(&s_opt),
+        trace(&s_rand),
+        worst(&s_opt),
+        worst(&s_rand),
+        s_opt.len()
+    );
+    assert!(trace(&s_opt) < trace(&s_rand));
+    assert!(worst(&s_opt) < worst(&s_rand));
+    assert!(
+        2 * smaller > s_opt.len(),
+        "most parameters should be more precise"
+    );
+}
+
+#[test]
+fn cli_writes_outputs_and_rejects_bad_input_without_partial_files() {
+    let Some((robot, _)) = test_robot() else {
+        return;
+    };
+    let robot_path = robot.source.clone();
+    let dir = tempfile::tempdir().unwrap();
+    let bin = env!("CARGO_BIN_EXE_model-export");
+    let out = std::process::Command::new(bin)
+        .args([
+            "excite",
+            "--joints",
+            "wrist",
+            "--restarts",
+            "1",
+            "--evaluations",
+            "200",
+        ])
+        .args([
+            "--samples",
+            "50",
+            "--qdd-max",
+            "8",
+            "--zero-at",
+            "3.8",
+            "--name",
+            "test",
+        ])
+        .arg("--robot")
+        .arg(&robot_path)
+        .arg("--out-dir")
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{stdout}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        stdout.contains("tightest:") && stdout.contains("condition number"),
+        "{stdout}"
+    );
+    let file =
+        model_export::excite::output::ExcitationFile::read(&dir.path().join("test.json")).unwrap();
+    assert_eq!(file.layout.moving, vec![3, 4, 5]);
+    let p = file.trajectory.eval(3.8);
+    assert!(p.q_rad.iter().all(|q| q.abs() < 1e-9));
+    let csv = std::fs::read_to_string(dir.path().join("test.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 1 + 1001);
+    assert!(dir.path().join("test.svg").exists());
+
+    // A rest pose outside the position limits: error naming the joint, no output files.
+    let bad = tempfile::tempdir().unwrap();
+    let out = std::process::Command::new(bin)
+        .args([
+            "excite",
+            "--joints",
+            "wrist",
+            "--qdd-max",
+            "8",
+            "--rest",
+            "0,20,0",
+        ])
+        .arg("--robot")
+        .arg(&robot_path)
+        .arg("--out-dir")
+        .arg(bad.path())
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(
+        stderr.contains("moving joint #1: rest pose 20 rad lies outside")
+            && stderr.contains("#1 = joint 5"),
+        "{stderr}"
+    );
+    assert_eq!(std::fs::read_dir(bad.path()).unwrap().count(), 0);
+}
