@@ -1,0 +1,265 @@
+//! Parameters of the true plant beyond the rigid body: per-joint drive (gear, motor,
+//! rotor, friction, thermal node, transmission ripple) and the current-sensing chain.
+//!
+//! Defaults are the built-in default robot (a UR5e-class arm); see model-export/README.md
+//! ("The default robot") for where each number comes from.
+use serde::{Deserialize, Serialize};
+
+/// One harmonic of the transmission's position-periodic torque ripple:
+/// `amplitude_nm * sin(cycles_per_rev * q + phase_rad)` with `q` the joint (output) angle.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RippleHarmonic {
+    /// Periods per output revolution (2 * gear ratio for the wave generator's 2nd order).
+    pub cycles_per_rev: f64,
+    /// Amplitude at the joint [N*m].
+    pub amplitude_nm: f64,
+    /// Phase [rad].
+    pub phase_rad: f64,
+}
+
+/// The true drive of one joint (all torques and inertias on the joint/output side unless
+/// the name says motor side).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct JointDrive {
+    /// Harmonic-drive reduction ratio N (motor turns per joint turn).
+    pub gear_ratio: f64,
+    /// Motor torque constant [N*m/A], motor side.
+    pub motor_torque_constant_nm_a: f64,
+    /// Rotor (motor + wave generator) inertia, motor side [kg*m^2]; reflected: N^2 times.
+    pub rotor_inertia_kgm2: f64,
+    /// Viscous friction at the reference temperature [N*m*s/rad].
+    pub viscous_nms_rad: f64,
+    /// Coulomb (sliding) friction level at no load [N*m].
+    pub coulomb_nm: f64,
+    /// Static (breakaway) friction level at no load [N*m], >= coulomb (Stribeck).
+    pub static_nm: f64,
+    /// Stribeck velocity [rad/s].
+    pub stribeck_velocity_rad_s: f64,
+    /// LuGre bristle stiffness sigma0 [N*m/rad] (presliding stiffness).
+    pub lugre_stiffness_nm_rad: f64,
+    /// LuGre bristle damping sigma1 [N*m*s/rad].
+    pub lugre_damping_nms_rad: f64,
+    /// Load-dependent friction: extra Coulomb level per N*m of transmitted torque [-].
+    pub load_friction_per_nm: f64,
+    /// Winding resistance [ohm] (I^2 R heating).
+    pub winding_resistance_ohm: f64,
+    /// Thermal resistance from the drive's thermal node to ambient [K/W].
+    pub thermal_resistance_k_w: f64,
+    /// Thermal time constant of the node [s] (capacity = time constant / resistance).
+    pub thermal_time_constant_s: f64,
+    /// Relative drop of viscous friction per kelvin above the reference temperature [1/K].
+    pub viscous_temperature_coeff_per_k: f64,
+    /// Transmission torque ripple harmonics.
+    pub ripple: Vec<RippleHarmonic>,
+    /// Full-scale current of the drive's current ADC, +- [A].
+    pub adc_full_scale_a: f64,
+}
+
+impl JointDrive {
+    /// Joint-side torque per ampere: `Kt * N` [N*m/A] (efficiency is modelled as friction).
+    pub fn drive_gain_nm_a(&self) -> f64 {
+        self.motor_torque_constant_nm_a * self.gear_ratio
+    }
+
+    /// Rotor inertia reflected to the joint: `N^2 * J_rotor` [kg*m^2].
+    pub fn reflected_rotor_inertia_kgm2(&self) -> f64 {
+        self.gear_ratio * self.gear_ratio * self.rotor_inertia_kgm2
+    }
+
+    /// Thermal capacity of the node [J/K].
+    pub fn thermal_capacity_j_k(&self) -> f64 {
+        self.thermal_time_constant_s / self.thermal_resistance_k_w
+    }
+}
+
+/// Current sensing and the controller's log chain.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SensorParameters {
+    /// White measurement noise of each current sample, standard deviation [A].
+    pub current_noise_a: f64,
+    /// ADC resolution in bits over +- `adc_full_scale_a`.
+    pub adc_bits: u32,
+    /// Kalman filter process noise (random-walk variance per sample) [A^2].
+    pub kalman_process_var_a2: f64,
+    /// Kalman filter measurement noise variance [A^2].
+    pub kalman_measurement_var_a2: f64,
+}
+
+/// Everything about the true plant that the rigid-body description does not hold.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PlantParameters {
+    /// Ambient (and default initial) temperature [degC]; also the friction reference.
+    pub ambient_temperature_c: f64,
+    /// Per-joint drives, base outwards.
+    pub joints: Vec<JointDrive>,
+    /// Current sensing.
+    pub sensor: SensorParameters,
+}
+
+/// Size-3 (base, shoulder, elbow) and size-1 (wrist) joint drives of the default robot.
+fn default_drive(size3: bool, joint_index: usize) -> JointDrive {
+    const N: f64 = 101.0;
+    // Distinct, fixed phases per joint so the ripple of two joints is not identical.
+    let phase = 0.7 * joint_index as f64;
+    if size3 {
+        JointDrive {
+            gear_ratio: N,
+            motor_torque_constant_nm_a: 0.125,
+            rotor_inertia_kgm2: 6.0e-5,
+            viscous_nms_rad: 6.0,
+            coulomb_nm: 5.0,
+            static_nm: 7.5,
+            stribeck_velocity_rad_s: 0.03,
+            lugre_stiffness_nm_rad: 5.0e3,
+            lugre_damping_nms_rad: 40.0,
+            load_friction_per_nm: 0.05,
+            winding_resistance_ohm: 0.35,
+            thermal_resistance_k_w: 1.2,
+            thermal_time_constant_s: 300.0,
+            viscous_temperature_coeff_per_k: 0.02,
+            ripple: vec![
+                RippleHarmonic {
+                    cycles_per_rev: 1.0,
+                    amplitude_nm: 0.8,
+                    phase_rad: phase,
+                },
+                RippleHarmonic {
+                    cycles_per_rev: 2.0,
+                    amplitude_nm: 1.2,
+                    phase_rad: 1.3 + phase,
+                },
+                RippleHarmonic {
+                    cycles_per_rev: 2.0 * N,
+                    amplitude_nm: 0.3,
+                    phase_rad: 0.0,
+                },
+            ],
+            adc_full_scale_a: 20.0,
+        }
+    } else {
+        JointDrive {
+            gear_ratio: N,
+            motor_torque_constant_nm_a: 0.0875,
+            rotor_inertia_kgm2: 1.6e-5,
+            viscous_nms_rad: 1.6,
+            coulomb_nm: 1.8,
+            static_nm: 2.9,
+            stribeck_velocity_rad_s: 0.04,
+            lugre_stiffness_nm_rad: 900.0,
+            lugre_damping_nms_rad: 12.0,
+            load_friction_per_nm: 0.15,
+            winding_resistance_ohm: 1.1,
+            thermal_resistance_k_w: 3.0,
+            thermal_time_constant_s: 120.0,
+            viscous_temperature_coeff_per_k: 0.02,
+            ripple: vec![
+                RippleHarmonic {
+                    cycles_per_rev: 1.0,
+                    amplitude_nm: 0.35,
+                    phase_rad: phase,
+                },
+                RippleHarmonic {
+                    cycles_per_rev: 2.0,
+                    amplitude_nm: 0.6,
+                    phase_rad: 1.3 + phase,
+                },
+                RippleHarmonic {
+                    cycles_per_rev: 2.0 * N,
+                    amplitude_nm: 0.1,
+                    phase_rad: 0.0,
+                },
+            ],
+            adc_full_scale_a: 10.0,
+        }
+    }
+}
+
+impl PlantParameters {
+    /// The default robot's drives (UR5e-class; sources in model-export/README.md).
+    pub fn default_robot() -> Self {
+        PlantParameters {
+            ambient_temperature_c: 25.0,
+            joints: (0..6).map(|j| default_drive(j < 3, j)).collect(),
+            sensor: SensorParameters {
+                current_noise_a: 0.01,
+                adc_bits: 12,
+                kalman_process_var_a2: 1.0e-3,
+                kalman_measurement_var_a2: 1.0e-4,
+            },
+        }
+    }
+
+    /// Checks physical sanity: positive ratios and constants, non-negative friction,
+    /// static >= Coulomb. Names the joint and field on failure.
+    pub fn validate(&self) -> anyhow::Result<()> {
+        for (j, d) in self.joints.iter().enumerate() {
+            let name = j + 1;
+            let positive = [
+                ("gear_ratio", d.gear_ratio),
+                ("motor_torque_constant_nm_a", d.motor_torque_constant_nm_a),
+                ("stribeck_velocity_rad_s", d.stribeck_velocity_rad_s),
+                ("lugre_stiffness_nm_rad", d.lugre_stiffness_nm_rad),
+                ("thermal_resistance_k_w", d.thermal_resistance_k_w),
+                ("thermal_time_constant_s", d.thermal_time_constant_s),
+                ("adc_full_scale_a", d.adc_full_scale_a),
+            ];
+            for (field, v) in positive {
+                anyhow::ensure!(
+                    v.is_finite() && v > 0.0,
+                    "joint {name}: {field} = {v} must be > 0"
+                );
+            }
+            let non_negative = [
+                ("rotor_inertia_kgm2", d.rotor_inertia_kgm2),
+                ("viscous_nms_rad", d.viscous_nms_rad),
+                ("coulomb_nm", d.coulomb_nm),
+                ("lugre_damping_nms_rad", d.lugre_damping_nms_rad),
+                ("load_friction_per_nm", d.load_friction_per_nm),
+                ("winding_resistance_ohm", d.winding_resistance_ohm),
+                (
+                    "viscous_temperature_coeff_per_k",
+                    d.viscous_temperature_coeff_per_k,
+                ),
+            ];
+            for (field, v) in non_negative {
+                anyhow::ensure!(
+                    v.is_finite() && v >= 0.0,
+                    "joint {name}: {field} = {v} must be >= 0"
+                );
+            }
+            anyhow::ensure!(
+                d.static_nm.is_finite() && d.static_nm >= d.coulomb_nm,
+                "joint {name}: static_nm = {} must be >= coulomb_nm = {}",
+                d.static_nm,
+                d.coulomb_nm
+            );
+            for (k, h) in d.ripple.iter().enumerate() {
+                anyhow::ensure!(
+                    h.cycles_per_rev.is_finite()
+                        && h.amplitude_nm.is_finite()
+                        && h.phase_rad.is_finite(),
+                    "joint {name}: ripple[{k}] has a non-finite field"
+                );
+            }
+        }
+        let s = &self.sensor;
+        anyhow::ensure!(
+            s.current_noise_a.is_finite() && s.current_noise_a >= 0.0,
+            "sensor: current_noise_a must be >= 0"
+        );
+        anyhow::ensure!(
+            (1..=24).contains(&s.adc_bits),
+            "sensor: adc_bits = {} must be 1..=24",
+            s.adc_bits
+        );
+        anyhow::ensure!(
+            s.kalman_process_var_a2 > 0.0 && s.kalman_measurement_var_a2 > 0.0,
+            "sensor: Kalman variances must be > 0"
+        );
+        Ok(())
+    }
+}
