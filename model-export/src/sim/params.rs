@@ -5,6 +5,9 @@
 //! ("The default robot") for where each number comes from.
 use serde::{Deserialize, Serialize};
 
+/// The default robot's plant file, compiled in.
+pub const DEFAULT_PLANT_TOML: &str = include_str!("../../robots/default.plant.toml");
+
 /// One harmonic of the transmission's position-periodic torque ripple:
 /// `amplitude_nm * sin(cycles_per_rev * q + phase_rad)` with `q` the joint (output) angle.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -100,97 +103,30 @@ pub struct PlantParameters {
     pub sensor: SensorParameters,
 }
 
-/// Size-3 (base, shoulder, elbow) and size-1 (wrist) joint drives of the default robot.
-fn default_drive(size3: bool, joint_index: usize) -> JointDrive {
-    const N: f64 = 101.0;
-    // Distinct, fixed phases per joint so the ripple of two joints is not identical.
-    let phase = 0.7 * joint_index as f64;
-    if size3 {
-        JointDrive {
-            gear_ratio: N,
-            motor_torque_constant_nm_a: 0.125,
-            rotor_inertia_kgm2: 6.0e-5,
-            viscous_nms_rad: 6.0,
-            coulomb_nm: 5.0,
-            static_nm: 7.5,
-            stribeck_velocity_rad_s: 0.03,
-            lugre_stiffness_nm_rad: 5.0e3,
-            lugre_damping_nms_rad: 40.0,
-            load_friction_per_nm: 0.05,
-            winding_resistance_ohm: 0.35,
-            thermal_resistance_k_w: 1.2,
-            thermal_time_constant_s: 300.0,
-            viscous_temperature_coeff_per_k: 0.02,
-            ripple: vec![
-                RippleHarmonic {
-                    cycles_per_rev: 1.0,
-                    amplitude_nm: 0.8,
-                    phase_rad: phase,
-                },
-                RippleHarmonic {
-                    cycles_per_rev: 2.0,
-                    amplitude_nm: 1.2,
-                    phase_rad: 1.3 + phase,
-                },
-                RippleHarmonic {
-                    cycles_per_rev: 2.0 * N,
-                    amplitude_nm: 0.3,
-                    phase_rad: 0.0,
-                },
-            ],
-            adc_full_scale_a: 20.0,
-        }
-    } else {
-        JointDrive {
-            gear_ratio: N,
-            motor_torque_constant_nm_a: 0.0875,
-            rotor_inertia_kgm2: 1.6e-5,
-            viscous_nms_rad: 1.6,
-            coulomb_nm: 1.8,
-            static_nm: 2.9,
-            stribeck_velocity_rad_s: 0.04,
-            lugre_stiffness_nm_rad: 900.0,
-            lugre_damping_nms_rad: 12.0,
-            load_friction_per_nm: 0.15,
-            winding_resistance_ohm: 1.1,
-            thermal_resistance_k_w: 3.0,
-            thermal_time_constant_s: 120.0,
-            viscous_temperature_coeff_per_k: 0.02,
-            ripple: vec![
-                RippleHarmonic {
-                    cycles_per_rev: 1.0,
-                    amplitude_nm: 0.35,
-                    phase_rad: phase,
-                },
-                RippleHarmonic {
-                    cycles_per_rev: 2.0,
-                    amplitude_nm: 0.6,
-                    phase_rad: 1.3 + phase,
-                },
-                RippleHarmonic {
-                    cycles_per_rev: 2.0 * N,
-                    amplitude_nm: 0.1,
-                    phase_rad: 0.0,
-                },
-            ],
-            adc_full_scale_a: 10.0,
-        }
-    }
-}
-
 impl PlantParameters {
-    /// The default robot's drives (UR5e-class; sources in model-export/README.md).
+    /// The default robot's drives: `model-export/robots/default.plant.toml`, compiled in.
     pub fn default_robot() -> Self {
-        PlantParameters {
-            ambient_temperature_c: 25.0,
-            joints: (0..6).map(|j| default_drive(j < 3, j)).collect(),
-            sensor: SensorParameters {
-                current_noise_a: 0.01,
-                adc_bits: 12,
-                kalman_process_var_a2: 1.0e-3,
-                kalman_measurement_var_a2: 1.0e-4,
-            },
-        }
+        Self::from_toml_str(DEFAULT_PLANT_TOML, "model-export/robots/default.plant.toml")
+            .expect("the built-in plant file is valid (tested)")
+    }
+
+    /// Parses a plant file (TOML); errors name the file, line and field.
+    pub fn from_toml_str(text: &str, file: &str) -> anyhow::Result<Self> {
+        let p: PlantParameters = toml::from_str(text).map_err(|e| {
+            let line = e.span().map(|s| text[..s.start].bytes().filter(|&b| b == b'\n').count() + 1);
+            match line {
+                Some(l) => anyhow::anyhow!("{file}:{l}: {}", e.message()),
+                None => anyhow::anyhow!("{file}: {}", e.message()),
+            }
+        })?;
+        p.validate().map_err(|e| anyhow::anyhow!("{file}: {e}"))?;
+        Ok(p)
+    }
+
+    /// Reads a plant file.
+    pub fn load(path: &std::path::Path) -> anyhow::Result<Self> {
+        let text = std::fs::read_to_string(path).map_err(|e| anyhow::anyhow!("{}: cannot read: {e}", path.display()))?;
+        Self::from_toml_str(&text, &path.display().to_string())
     }
 
     /// Checks physical sanity: positive ratios and constants, non-negative friction,
