@@ -20,6 +20,10 @@ pub enum Command {
         #[arg(long, default_value_t = 9)]
         points: usize,
     },
+    /// Simulate the true plant along a commanded trajectory and write the controller's log (CSV).
+    Simulate(crate::sim::cli::SimulateArgs),
+    /// Identify rigid body + friction on simulated logs and print the per-joint uncompensated RMS table.
+    PlantReport(crate::sim::cli::PlantReportArgs),
 }
 
 /// Runs one parsed command line.
@@ -39,5 +43,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
             }
             Ok(())
         }
+        Command::Simulate(args) => crate::sim::cli::run_simulate(&args),
+        Command::PlantReport(args) => crate::sim::cli::run_plant_report(&args),
     }
 }

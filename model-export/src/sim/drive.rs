@@ -103,16 +103,19 @@ pub fn friction_step(
     }
 }
 
-/// Advances the thermal node over `dt_s` with I^2 R heating at current `current_a`:
-/// `C dT/dt = i^2 R - (T - T_amb)/R_th`, integrated exactly for constant power.
+/// Advances the thermal node over `dt_s`, heated by the winding's I^2 R loss at current
+/// `current_a` plus the share `friction_heat_share` of the friction power `|tau_f qd|`:
+/// `C dT/dt = i^2 R + s |tau_f qd| - (T - T_amb)/R_th`, integrated exactly for constant power.
 pub fn thermal_step(
     drive: &JointDrive,
     state: &mut DriveState,
     current_a: f64,
+    friction_power_w: f64,
     ambient_c: f64,
     dt_s: f64,
 ) {
-    let power_w = current_a * current_a * drive.winding_resistance_ohm;
+    let power_w = current_a * current_a * drive.winding_resistance_ohm
+        + drive.friction_heat_share * friction_power_w.abs();
     let t_ss = ambient_c + power_w * drive.thermal_resistance_k_w;
     let decay = (-dt_s / drive.thermal_time_constant_s).exp();
     state.temperature_c = t_ss + (state.temperature_c - t_ss) * decay;
@@ -197,7 +200,7 @@ mod tests {
         let d = wrist();
         let mut s = DriveState::at_rest(25.0);
         for _ in 0..(20.0 * d.thermal_time_constant_s) as usize {
-            thermal_step(&d, &mut s, 2.0, 25.0, 1.0);
+            thermal_step(&d, &mut s, 2.0, 0.0, 25.0, 1.0);
         }
         let expect = 25.0 + 4.0 * d.winding_resistance_ohm * d.thermal_resistance_k_w;
         assert!((s.temperature_c - expect).abs() < 1e-6);

@@ -6,9 +6,11 @@
 //! dynamics of the true plant along it, stepped at an internal rate (default 1 kHz) that
 //! integrates the memory effects (LuGre bristles, thermal node), then sampled, corrupted
 //! and optionally filtered at the controller rate (default 100 Hz).
+pub mod cli;
 pub mod drive;
 pub mod log;
 pub mod params;
+pub mod report;
 pub mod rigid;
 pub mod sensor;
 pub mod trajectory;
@@ -99,8 +101,8 @@ pub struct SimulationConfig {
     pub driven_joints: Vec<usize>,
     /// Position of every robot joint not driven by the trajectory [rad] (length = dof).
     pub locked_position_rad: Vec<f64>,
-    /// Temperature of every drive at t = 0 [degC]; `None`: ambient.
-    pub initial_temperature_c: Option<f64>,
+    /// Temperature of each drive at t = 0 [degC] (one value: all drives); empty: ambient.
+    pub initial_temperature_c: Vec<f64>,
 }
 
 impl SimulationConfig {
@@ -114,7 +116,7 @@ impl SimulationConfig {
             seed: 0,
             driven_joints: (0..trajectory_joints.min(dof)).collect(),
             locked_position_rad: vec![0.0; dof],
-            initial_temperature_c: None,
+            initial_temperature_c: Vec::new(),
         }
     }
 }
@@ -178,7 +180,25 @@ pub fn simulate<R: RigidBodyModel + ?Sized>(
     let fx = cfg.effects;
 
     let ambient = plant.ambient_temperature_c;
-    let mut state = vec![DriveState::at_rest(cfg.initial_temperature_c.unwrap_or(ambient)); dof];
+    let t0 = &cfg.initial_temperature_c;
+    ensure!(
+        t0.len() <= 1 || t0.len() == dof,
+        "initial temperatures: {} given, need 1 or {dof}",
+        t0.len()
+    );
+    ensure!(
+        t0.iter().all(|t| t.is_finite()),
+        "initial temperatures must be finite"
+    );
+    let mut state: Vec<DriveState> = (0..dof)
+        .map(|j| {
+            DriveState::at_rest(if t0.is_empty() {
+                ambient
+            } else {
+                t0[j.min(t0.len() - 1)]
+            })
+        })
+        .collect();
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(cfg.seed);
     let s = &plant.sensor;
     let mut kalman =
@@ -251,7 +271,15 @@ pub fn simulate<R: RigidBodyModel + ?Sized>(
         }
         if fx.thermal {
             for j in 0..dof {
-                drive::thermal_step(&plant.joints[j], &mut state[j], current[j], ambient, h);
+                let friction_power = parts[j].friction_nm * qd[j];
+                drive::thermal_step(
+                    &plant.joints[j],
+                    &mut state[j],
+                    current[j],
+                    friction_power,
+                    ambient,
+                    h,
+                );
             }
         }
     }
@@ -338,4 +366,22 @@ pub fn default_arm() -> DhArm {
             })
             .collect(),
     }
+}
+
+/// Loads a robot's rigid body for the simulator. The built-in default robot file
+/// (`robots/default.toml`) gives [`default_arm`].
+pub fn load_arm(path: &std::path::Path) -> anyhow::Result<DhArm> {
+    let p = cli::resolve(path);
+    let default = std::path::Path::new(cli::DEFAULT_ROBOT);
+    let same = |a: &std::path::Path, b: &std::path::Path| match (a.canonicalize(), b.canonicalize())
+    {
+        (Ok(x), Ok(y)) => x == y,
+        _ => false,
+    };
+    anyhow::ensure!(
+        same(&p, default),
+        "{}: only the default robot is supported by the simulator yet",
+        p.display()
+    );
+    Ok(default_arm())
 }

@@ -48,6 +48,8 @@ pub struct JointDrive {
     pub load_friction_per_nm: f64,
     /// Winding resistance [ohm] (I^2 R heating).
     pub winding_resistance_ohm: f64,
+    /// Share of the friction power `|tau_f qd|` that heats the thermal node [-] (0: I^2 R only).
+    pub friction_heat_share: f64,
     /// Thermal resistance from the drive's thermal node to ambient [K/W].
     pub thermal_resistance_k_w: f64,
     /// Thermal time constant of the node [s] (capacity = time constant / resistance).
@@ -113,7 +115,9 @@ impl PlantParameters {
     /// Parses a plant file (TOML); errors name the file, line and field.
     pub fn from_toml_str(text: &str, file: &str) -> anyhow::Result<Self> {
         let p: PlantParameters = toml::from_str(text).map_err(|e| {
-            let line = e.span().map(|s| text[..s.start].bytes().filter(|&b| b == b'\n').count() + 1);
+            let line = e
+                .span()
+                .map(|s| text[..s.start].bytes().filter(|&b| b == b'\n').count() + 1);
             match line {
                 Some(l) => anyhow::anyhow!("{file}:{l}: {}", e.message()),
                 None => anyhow::anyhow!("{file}: {}", e.message()),
@@ -125,7 +129,8 @@ impl PlantParameters {
 
     /// Reads a plant file.
     pub fn load(path: &std::path::Path) -> anyhow::Result<Self> {
-        let text = std::fs::read_to_string(path).map_err(|e| anyhow::anyhow!("{}: cannot read: {e}", path.display()))?;
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| anyhow::anyhow!("{}: cannot read: {e}", path.display()))?;
         Self::from_toml_str(&text, &path.display().to_string())
     }
 
@@ -156,6 +161,7 @@ impl PlantParameters {
                 ("lugre_damping_nms_rad", d.lugre_damping_nms_rad),
                 ("load_friction_per_nm", d.load_friction_per_nm),
                 ("winding_resistance_ohm", d.winding_resistance_ohm),
+                ("friction_heat_share", d.friction_heat_share),
                 (
                     "viscous_temperature_coeff_per_k",
                     d.viscous_temperature_coeff_per_k,

@@ -46,24 +46,89 @@ pub struct DhArm {
     pub links: Vec<DhLink>,
 }
 
-struct LinkConst {
-    r: Matrix3<f64>, // rotation part Rx(alpha) (the Rz(theta) part is per state)
-    p_star: Vector3<f64>,
-    axis_in_i: Vector3<f64>,
-    c: Vector3<f64>,
-    inertia: Matrix3<f64>,
+impl DhLink {
+    /// Standard parameters about the DH frame origin, DH axes:
+    /// `[m, m cx, m cy, m cz, Ixx, Iyy, Izz, Ixy, Ixz, Iyz]` (parallel-axis theorem).
+    pub fn standard_parameters(&self) -> [f64; 10] {
+        let m = self.mass_kg;
+        let [cx, cy, cz] = self.com_m;
+        let [ixx, iyy, izz, ixy, ixz, iyz] = self.inertia_com_kgm2;
+        [
+            m,
+            m * cx,
+            m * cy,
+            m * cz,
+            ixx + m * (cy * cy + cz * cz),
+            iyy + m * (cx * cx + cz * cz),
+            izz + m * (cx * cx + cy * cy),
+            ixy - m * cx * cy,
+            ixz - m * cx * cz,
+            iyz - m * cy * cz,
+        ]
+    }
 }
 
 impl DhArm {
-    fn link_const(l: &DhLink) -> LinkConst {
-        let (s, c) = l.alpha_rad.sin_cos();
-        let [ixx, iyy, izz, ixy, ixz, iyz] = l.inertia_com_kgm2;
-        LinkConst {
-            r: Matrix3::new(1.0, 0.0, 0.0, 0.0, c, -s, 0.0, s, c),
-            p_star: Vector3::new(l.a_m, l.d_m * s, l.d_m * c),
-            axis_in_i: Vector3::new(0.0, s, c),
-            c: Vector3::from(l.com_m),
-            inertia: Matrix3::new(ixx, ixy, ixz, ixy, iyy, iyz, ixz, iyz, izz),
+    /// All links' standard parameters, link after link (10 per link).
+    pub fn standard_parameters(&self) -> Vec<f64> {
+        self.links
+            .iter()
+            .flat_map(|l| l.standard_parameters())
+            .collect()
+    }
+
+    /// Recursive Newton-Euler with the links' inertia given as standard parameters
+    /// (`params`: 10 per link, see [`DhLink::standard_parameters`]); linear in `params`.
+    pub fn inverse_dynamics_with(
+        &self,
+        params: &[f64],
+        q: &[f64],
+        qd: &[f64],
+        qdd: &[f64],
+        tau_nm: &mut [f64],
+    ) {
+        const MAX: usize = 16;
+        let n = self.links.len();
+        assert!(n <= MAX, "at most {MAX} links");
+        let z = Vector3::z();
+        let mut rot = [Matrix3::zeros(); MAX];
+        let mut pstar = [Vector3::zeros(); MAX];
+        let mut force = [Vector3::zeros(); MAX];
+        let mut moment = [Vector3::zeros(); MAX];
+        let mut w = Vector3::zeros();
+        let mut wd = Vector3::zeros();
+        let mut vd = Vector3::new(0.0, 0.0, GRAVITY_M_S2);
+        for i in 0..n {
+            let l = &self.links[i];
+            let (sa, ca) = l.alpha_rad.sin_cos();
+            let (st, ct) = (q[i] + l.theta_offset_rad).sin_cos();
+            let r = Matrix3::new(ct, -st * ca, st * sa, st, ct * ca, -ct * sa, 0.0, sa, ca);
+            let rt = r.transpose();
+            let p = Vector3::new(l.a_m, l.d_m * sa, l.d_m * ca);
+            let w_new = rt * (w + z * qd[i]);
+            wd = rt * (wd + z * qdd[i] + w.cross(&(z * qd[i])));
+            w = w_new;
+            vd = rt * vd + wd.cross(&p) + w.cross(&w.cross(&p));
+            let k = &params[10 * i..10 * i + 10];
+            let h = Vector3::new(k[1], k[2], k[3]);
+            let io = Matrix3::new(k[4], k[7], k[8], k[7], k[5], k[9], k[8], k[9], k[6]);
+            force[i] = vd * k[0] + wd.cross(&h) + w.cross(&w.cross(&h));
+            moment[i] = io * wd + w.cross(&(io * w)) + h.cross(&vd);
+            rot[i] = r;
+            pstar[i] = p;
+        }
+        let mut f = Vector3::zeros();
+        let mut nm = Vector3::zeros();
+        for i in (0..n).rev() {
+            let (f_c, n_c) = if i + 1 < n {
+                (rot[i + 1] * f, rot[i + 1] * (nm + pstar[i + 1].cross(&f)))
+            } else {
+                (f * 0.0, nm * 0.0)
+            };
+            f = f_c + force[i];
+            nm = n_c + moment[i];
+            let (sa, ca) = self.links[i].alpha_rad.sin_cos();
+            tau_nm[i] = (nm + pstar[i].cross(&f)).dot(&Vector3::new(0.0, sa, ca));
         }
     }
 }
@@ -74,48 +139,8 @@ impl RigidBodyModel for DhArm {
     }
 
     fn inverse_dynamics(&self, q: &[f64], qd: &[f64], qdd: &[f64], tau_nm: &mut [f64]) {
-        let n = self.links.len();
-        let z = Vector3::z();
-        let mut rot = Vec::with_capacity(n); // R_{i-1,i}
-        let mut force = Vec::with_capacity(n);
-        let mut moment = Vec::with_capacity(n);
-        let mut consts = Vec::with_capacity(n);
-        let mut w = Vector3::zeros();
-        let mut wd = Vector3::zeros();
-        let mut vd = Vector3::new(0.0, 0.0, GRAVITY_M_S2);
-        for i in 0..n {
-            let l = &self.links[i];
-            let k = Self::link_const(l);
-            let (st, ct) = (q[i] + l.theta_offset_rad).sin_cos();
-            let rz = Matrix3::new(ct, -st, 0.0, st, ct, 0.0, 0.0, 0.0, 1.0);
-            let r = rz * k.r;
-            let rt = r.transpose();
-            let w_new = rt * (w + z * qd[i]);
-            wd = rt * (wd + z * qdd[i] + w.cross(&(z * qd[i])));
-            w = w_new;
-            vd = rt * vd + wd.cross(&k.p_star) + w.cross(&w.cross(&k.p_star));
-            let ac = vd + wd.cross(&k.c) + w.cross(&w.cross(&k.c));
-            force.push(ac * l.mass_kg);
-            moment.push(k.inertia * wd + w.cross(&(k.inertia * w)));
-            rot.push(r);
-            consts.push(k);
-        }
-        let mut f_next = Vector3::zeros();
-        let mut n_next = Vector3::zeros();
-        for i in (0..n).rev() {
-            let k = &consts[i];
-            let (f_child, n_child) = if i + 1 < n {
-                (rot[i + 1] * f_next, rot[i + 1] * n_next)
-            } else {
-                (Vector3::zeros(), Vector3::zeros())
-            };
-            let f = f_child + force[i];
-            let nm =
-                n_child + k.p_star.cross(&f_child) + (k.p_star + k.c).cross(&force[i]) + moment[i];
-            tau_nm[i] = nm.dot(&k.axis_in_i);
-            f_next = f;
-            n_next = nm;
-        }
+        let params = self.standard_parameters();
+        self.inverse_dynamics_with(&params, q, qd, qdd, tau_nm);
     }
 }
 

@@ -75,6 +75,68 @@ impl FourierTrajectory {
         }
     }
 
+    /// A seeded rest-to-rest trajectory (`q = q_rest`, `qd = qdd = 0` at `t = 0` and at
+    /// every period, by construction: `a_1`, `b_1` and `q0` are solved from the other
+    /// coefficients), scaled so `|q - q_rest| <= q_max`, `|qd| <= qd_max`, `|qdd| <= qdd_max`
+    /// on a grid 20x finer than 100 Hz. For tests and demos; the optimised excitation comes
+    /// from `model-export excite`.
+    pub fn seeded_rest_to_rest(
+        seed: u64,
+        q_rest_rad: &[f64],
+        harmonics: usize,
+        period_s: f64,
+        limits: (f64, f64, f64),
+    ) -> Self {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+        let mut joints = Vec::new();
+        for _ in q_rest_rad {
+            let mut a: Vec<f64> = (0..harmonics).map(|_| rng.gen_range(-1.0..1.0)).collect();
+            let mut b: Vec<f64> = (0..harmonics).map(|_| rng.gen_range(-1.0..1.0)).collect();
+            // qd(0) = w sum k a_k = 0, qdd(0) = -w^2 sum k^2 b_k = 0.
+            a[0] = -(2..=harmonics).map(|k| k as f64 * a[k - 1]).sum::<f64>();
+            b[0] = -(2..=harmonics)
+                .map(|k| (k * k) as f64 * b[k - 1])
+                .sum::<f64>();
+            joints.push(FourierJoint {
+                q0_rad: 0.0,
+                a_rad: a,
+                b_rad: b,
+            });
+        }
+        let mut tr = FourierTrajectory {
+            period_s,
+            harmonics,
+            joints,
+        };
+        let (q_max, qd_max, qdd_max) = limits;
+        let n = tr.joints.len();
+        let (mut q, mut qd, mut qdd) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+        let mut peak = vec![(0.0f64, 0.0f64, 0.0f64); n];
+        let grid = (period_s * 2000.0) as usize;
+        for i in 0..=grid {
+            tr.eval_into(period_s * i as f64 / grid as f64, &mut q, &mut qd, &mut qdd);
+            for j in 0..n {
+                // Position about the offset-free series value at t = 0.
+                peak[j].0 = peak[j].0.max(q[j].abs());
+                peak[j].1 = peak[j].1.max(qd[j].abs());
+                peak[j].2 = peak[j].2.max(qdd[j].abs());
+            }
+        }
+        for (j, jf) in tr.joints.iter_mut().enumerate() {
+            // |q - q(0)| <= |q| + |q(0)| <= 2 peak.
+            let s = (q_max / (2.0 * peak[j].0))
+                .min(qd_max / peak[j].1)
+                .min(qdd_max / peak[j].2);
+            jf.a_rad
+                .iter_mut()
+                .chain(jf.b_rad.iter_mut())
+                .for_each(|c| *c *= s);
+            jf.q0_rad = q_rest_rad[j] - jf.b_rad.iter().sum::<f64>();
+        }
+        tr
+    }
+
     fn validate(&self) -> anyhow::Result<()> {
         ensure!(
             self.period_s.is_finite() && self.period_s > 0.0,
