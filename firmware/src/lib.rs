@@ -7,6 +7,7 @@
 #![deny(unsafe_code)]
 #![warn(missing_docs)]
 
+pub mod dynamics;
 pub mod golden;
 pub mod log;
 pub mod math;
