@@ -185,8 +185,9 @@ fn config(args: &PlantArgs, dof: usize, driven: Vec<usize>, seed: u64) -> Simula
 
 /// Runs `simulate`.
 pub fn run_simulate(args: &SimulateArgs) -> anyhow::Result<()> {
-    let arm = super::load_arm(&args.plant.robot)?;
-    let dof = super::RigidBodyModel::dof(&arm);
+    let robot = super::load_robot(&args.plant.robot)?;
+    let arm = super::RobotRigidBody::new(&robot);
+    let dof = robot.dof();
     let plant = load_plant(&args.plant)?;
     let traj = CommandedTrajectory::load(&args.trajectory, args.periods)?;
     let driven = if args.joints.is_empty() {
@@ -242,8 +243,9 @@ pub const DEMO_LIMITS: (f64, f64, f64) = (2.5, 2.5, 10.0);
 
 /// Runs `plant-report`: the per-joint uncompensated RMS table.
 pub fn run_plant_report(args: &PlantReportArgs) -> anyhow::Result<()> {
-    let arm = super::load_arm(&args.plant.robot)?;
-    let dof = super::RigidBodyModel::dof(&arm);
+    let robot = super::load_robot(&args.plant.robot)?;
+    let arm = super::RobotRigidBody::new(&robot);
+    let dof = robot.dof();
     let plant = load_plant(&args.plant)?;
     let joints = one_based(&args.joints, dof)?;
     let train = trajectory_or_seeded(&args.train, args.train_periods, 1, joints.len())?;
@@ -260,7 +262,7 @@ pub fn run_plant_report(args: &PlantReportArgs) -> anyhow::Result<()> {
         }
         cfg.seed = args.seed.wrapping_add(1);
         let b = super::simulate(&arm, &plant, &test, &cfg).context("test run")?;
-        report::uncompensated_rms(&arm, &a, &b, &joints, TorqueSource::Measured)
+        report::uncompensated_rms(&robot, &a, &b, &joints, TorqueSource::Measured)
     };
     let effects = args.plant.effects.effects();
     let rms = run(effects)?;

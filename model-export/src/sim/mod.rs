@@ -368,20 +368,41 @@ pub fn default_arm() -> DhArm {
     }
 }
 
-/// Loads a robot's rigid body for the simulator. The built-in default robot file
-/// (`robots/default.toml`) gives [`default_arm`].
-pub fn load_arm(path: &std::path::Path) -> anyhow::Result<DhArm> {
+/// A robot description ([`crate::robot::Robot`], from DH TOML or URDF) as the plant's
+/// rigid body: every joint moves, no friction or rotor terms (the plant adds its own),
+/// evaluated with the robot module's recursive Newton-Euler ([`crate::dynamics::rnea`]).
+#[derive(Debug, Clone)]
+pub struct RobotRigidBody {
+    /// The robot, all joints modelled, rigid-body terms only.
+    pub robot: crate::robot::Robot,
+    theta: nalgebra::DVector<f64>,
+}
+
+impl RobotRigidBody {
+    /// Wraps a robot description (its joint selection and model terms are ignored).
+    pub fn new(robot: &crate::robot::Robot) -> Self {
+        let mut robot = robot.clone();
+        robot.model_all_joints();
+        robot.terms = crate::robot::ModelTerms::rigid_body_only();
+        let theta = robot.standard_parameters();
+        RobotRigidBody { robot, theta }
+    }
+}
+
+impl RigidBodyModel for RobotRigidBody {
+    fn dof(&self) -> usize {
+        self.robot.dof()
+    }
+
+    fn inverse_dynamics(&self, q: &[f64], qd: &[f64], qdd: &[f64], tau_nm: &mut [f64]) {
+        let t = crate::dynamics::rnea(&self.robot, &self.theta, q, qd, qdd, &self.robot.gravity);
+        tau_nm.copy_from_slice(t.as_slice());
+    }
+}
+
+/// Loads a robot description (DH TOML or URDF; a relative path is also looked up from
+/// the crate root) for the simulator.
+pub fn load_robot(path: &std::path::Path) -> anyhow::Result<crate::robot::Robot> {
     let p = cli::resolve(path);
-    let default = std::path::Path::new(cli::DEFAULT_ROBOT);
-    let same = |a: &std::path::Path, b: &std::path::Path| match (a.canonicalize(), b.canonicalize())
-    {
-        (Ok(x), Ok(y)) => x == y,
-        _ => false,
-    };
-    anyhow::ensure!(
-        same(&p, default),
-        "{}: only the default robot is supported by the simulator yet",
-        p.display()
-    );
-    Ok(default_arm())
+    Ok(crate::robot::Robot::load(&p)?)
 }

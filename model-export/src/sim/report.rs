@@ -1,15 +1,14 @@
 //! What the identification model leaves unexplained in the simulated plant: identify
-//! rigid body + viscous + Coulomb friction by least squares on a training log, then the
-//! per-joint RMS of `measured - model` on the training and a test log (the paper's
-//! "uncompensated" error, Table 2).
-//!
-//! The least-squares fit uses the full standard-parameter regressor (10 per link plus
-//! viscous and Coulomb columns per modelled joint) solved with a rank-revealing SVD, so
-//! its predictions equal those of the base-parameter identification (same column space).
+//! the base parameters of rigid body + viscous + Coulomb friction by ordinary least
+//! squares on a training log (the robot module's regressor, [`BaseParameters`] and
+//! [`identify::solve`]), then the per-joint RMS of `measured - model` on the training and
+//! a test log (the paper's "uncompensated" error, Table 2).
 use super::SimulatedLog;
-use super::rigid::DhArm;
-use anyhow::ensure;
-use nalgebra::{DMatrix, DVector};
+use crate::base::BaseParameters;
+use crate::identify::{self, IdentifyOptions, NormalEquations};
+use crate::robot::{JointMode, ModelTerms, Robot};
+use anyhow::{Context, ensure};
+use nalgebra::DVector;
 
 /// One joint's uncompensated RMS error [N*m].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -24,7 +23,7 @@ pub struct JointRms {
     pub test_signal_nm: f64,
 }
 
-/// Which column of the log to fit.
+/// Which torque column of the log to fit.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum TorqueSource {
     /// `tau{j}_nm`: the measured (logged) torque.
@@ -33,124 +32,128 @@ pub enum TorqueSource {
     True,
 }
 
-/// Regressor rows of `joints` at one state (`cols`: 10 per link from link `first` on,
-/// then viscous and Coulomb per joint).
-fn regressor_rows(
-    arm: &DhArm,
-    joints: &[usize],
-    q: &[f64],
-    qd: &[f64],
-    qdd: &[f64],
-    out: &mut DMatrix<f64>,
-    row0: usize,
-) {
-    let dof = arm.links.len();
-    let first = joints.iter().copied().min().unwrap_or(0);
-    let mut e = vec![0.0; 10 * dof];
-    let mut tau = vec![0.0; dof];
-    let mut col = 0;
-    for k in 10 * first..10 * dof {
-        e[k] = 1.0;
-        arm.inverse_dynamics_with(&e, q, qd, qdd, &mut tau);
-        e[k] = 0.0;
-        for (m, &j) in joints.iter().enumerate() {
-            out[(row0 + m, col)] = tau[j];
-        }
-        col += 1;
+/// The robot as the identification sees it: `joints` modelled with the paper's terms
+/// (viscous + Coulomb), every other joint locked where the log holds it (its first sample).
+pub fn identification_robot(robot: &Robot, log: &SimulatedLog, joints: &[usize]) -> Robot {
+    let mut r = robot.clone();
+    r.terms = ModelTerms::default();
+    let q0 = log
+        .rows
+        .first()
+        .map(|row| row[1..1 + log.dof].to_vec())
+        .unwrap_or_else(|| vec![0.0; log.dof]);
+    for (i, j) in r.joints.iter_mut().enumerate() {
+        j.mode = if joints.contains(&i) {
+            JointMode::Modelled
+        } else {
+            JointMode::Locked { q_rad: q0[i] }
+        };
     }
-    for (m, &j) in joints.iter().enumerate() {
-        out[(row0 + m, col + 2 * m)] = qd[j];
-        out[(row0 + m, col + 2 * m + 1)] = super::drive::sign(qd[j]);
+    r
+}
+
+/// The identification of one log: base parameters and the fitted values.
+#[derive(Debug, Clone)]
+pub struct LogIdentification {
+    /// The identified robot (joint selection and terms).
+    pub robot: Robot,
+    /// Its base parameters.
+    pub base: BaseParameters,
+    /// The least-squares result (values are the base parameters `beta`).
+    pub result: identify::Identification,
+}
+
+fn state(log: &SimulatedLog, row: &[f64], joints: &[usize]) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+    let pick = |prefix: &str| -> Vec<f64> {
+        joints
+            .iter()
+            .map(|&j| row[log.column(prefix, j).unwrap_or(0)])
+            .collect()
+    };
+    (pick("q"), pick("qd"), pick("true_qdd"))
+}
+
+fn torque_prefix(source: TorqueSource) -> &'static str {
+    match source {
+        TorqueSource::Measured => "tau",
+        TorqueSource::True => "true_tau",
     }
 }
 
-fn observation(
-    arm: &DhArm,
+/// Identifies rigid body + viscous + Coulomb base parameters of `joints` (0-based) from
+/// a simulated log, using its ground-truth accelerations (`true_qdd`) so the result
+/// isolates the plant's unmodelled effects from differentiation error.
+pub fn identify_log(
+    robot: &Robot,
     log: &SimulatedLog,
     joints: &[usize],
     source: TorqueSource,
-) -> (DMatrix<f64>, DVector<f64>) {
-    let dof = log.dof;
-    let first = joints.iter().copied().min().unwrap_or(0);
-    let cols = 10 * (dof - first) + 2 * joints.len();
-    let n = log.rows.len();
-    let mut w = DMatrix::zeros(n * joints.len(), cols);
-    let mut y = DVector::zeros(n * joints.len());
-    let tau = match source {
-        TorqueSource::Measured => "tau",
-        TorqueSource::True => "true_tau",
-    };
-    let qc = log.column("q", 0).unwrap_or(1);
-    let qdc = log.column("qd", 0).unwrap_or(1);
-    let qddc = log.column("true_qdd", 0).unwrap_or(1);
-    for (k, r) in log.rows.iter().enumerate() {
-        regressor_rows(
-            arm,
-            joints,
-            &r[qc..qc + dof],
-            &r[qdc..qdc + dof],
-            &r[qddc..qddc + dof],
-            &mut w,
-            k * joints.len(),
-        );
+) -> anyhow::Result<LogIdentification> {
+    ensure!(!joints.is_empty(), "no joints to identify");
+    let robot = identification_robot(robot, log, joints);
+    let base =
+        BaseParameters::compute(&robot, 0).map_err(|e| anyhow::anyhow!("base parameters: {e}"))?;
+    let mut ne = NormalEquations::new(joints.len(), base.count());
+    let prefix = torque_prefix(source);
+    for row in &log.rows {
+        let (q, qd, qdd) = state(log, row, joints);
+        let y = base.project(&crate::dynamics::regressor(&robot, &q, &qd, &qdd));
+        let tau: Vec<f64> = joints
+            .iter()
+            .map(|&j| row[log.column(prefix, j).unwrap_or(0)])
+            .collect();
+        ne.add_sample_matrix(&y, &tau);
+    }
+    let result = identify::solve(&mut ne, &base.names(), &IdentifyOptions::default())
+        .context("identification")?;
+    Ok(LogIdentification {
+        robot,
+        base,
+        result,
+    })
+}
+
+/// Per-joint RMS of `measured - model` over a log, and RMS of the measured torque.
+pub fn residual_rms(
+    id: &LogIdentification,
+    log: &SimulatedLog,
+    joints: &[usize],
+    source: TorqueSource,
+) -> Vec<(f64, f64)> {
+    let beta = DVector::from_column_slice(&id.result.values);
+    let prefix = torque_prefix(source);
+    let mut e2 = vec![0.0; joints.len()];
+    let mut s2 = vec![0.0; joints.len()];
+    for row in &log.rows {
+        let (q, qd, qdd) = state(log, row, joints);
+        let pred = id
+            .base
+            .project(&crate::dynamics::regressor(&id.robot, &q, &qd, &qdd))
+            * &beta;
         for (m, &j) in joints.iter().enumerate() {
-            y[k * joints.len() + m] = r[log.column(tau, j).unwrap_or(0)];
+            let y = row[log.column(prefix, j).unwrap_or(0)];
+            e2[m] += (y - pred[m]).powi(2);
+            s2[m] += y * y;
         }
     }
-    (w, y)
+    let n = log.rows.len().max(1) as f64;
+    e2.iter()
+        .zip(&s2)
+        .map(|(e, s)| ((e / n).sqrt(), (s / n).sqrt()))
+        .collect()
 }
 
 /// Identifies on `train`, evaluates on `train` and `test`: per-joint uncompensated RMS.
-/// Uses the logged accelerations' ground truth (`true_qdd`), so the figure isolates the
-/// plant's unmodelled effects from differentiation error.
 pub fn uncompensated_rms(
-    arm: &DhArm,
+    robot: &Robot,
     train: &SimulatedLog,
     test: &SimulatedLog,
     joints: &[usize],
     source: TorqueSource,
 ) -> anyhow::Result<Vec<JointRms>> {
-    ensure!(!joints.is_empty(), "no joints to evaluate");
-    ensure!(
-        train.rows.len() > 10 && test.rows.len() > 10,
-        "logs too short"
-    );
-    let (w, y) = observation(arm, train, joints, source);
-    // Column scaling, then an SVD solve with a relative rank tolerance.
-    let scale: Vec<f64> = (0..w.ncols())
-        .map(|c| w.column(c).norm().max(1e-300))
-        .collect();
-    let mut ws = w.clone();
-    for (c, s) in scale.iter().enumerate() {
-        ws.column_mut(c).scale_mut(1.0 / s);
-    }
-    let svd = ws.svd(true, true);
-    let tol = 1e-9 * svd.singular_values.max();
-    let theta_s = svd
-        .solve(&y, tol)
-        .map_err(|e| anyhow::anyhow!("least squares failed: {e}"))?;
-    let rms = |w: &DMatrix<f64>, y: &DVector<f64>| -> Vec<(f64, f64)> {
-        let pred = w * DVector::from_iterator(
-            theta_s.len(),
-            theta_s.iter().zip(&scale).map(|(t, s)| t / s),
-        );
-        let nj = joints.len();
-        (0..nj)
-            .map(|m| {
-                let rows = y.len() / nj;
-                let (mut e2, mut s2) = (0.0, 0.0);
-                for k in 0..rows {
-                    let i = k * nj + m;
-                    e2 += (y[i] - pred[i]).powi(2);
-                    s2 += y[i] * y[i];
-                }
-                ((e2 / rows as f64).sqrt(), (s2 / rows as f64).sqrt())
-            })
-            .collect()
-    };
-    let tr = rms(&w, &y);
-    let (wt, yt) = observation(arm, test, joints, source);
-    let te = rms(&wt, &yt);
+    let id = identify_log(robot, train, joints, source)?;
+    let tr = residual_rms(&id, train, joints, source);
+    let te = residual_rms(&id, test, joints, source);
     Ok(joints
         .iter()
         .enumerate()
@@ -171,51 +174,62 @@ mod tests {
         SimulationConfig,
     };
 
-    fn wrist_logs(effects: PlantEffects) -> (SimulatedLog, SimulatedLog) {
-        let arm = sim::default_arm();
-        let plant = PlantParameters::default_robot();
-        let lim = (1.2, 1.5, 5.0);
-        let run = |seed: u64, periods| {
-            let series = FourierTrajectory::seeded_rest_to_rest(seed, &[0.0; 3], 5, 10.0, lim);
-            let tr = CommandedTrajectory::Fourier { series, periods };
-            let mut cfg = SimulationConfig::new(6, 3);
-            cfg.driven_joints = vec![3, 4, 5];
-            cfg.effects = effects;
-            cfg.seed = seed;
-            sim::simulate(&arm, &plant, &tr, &cfg).unwrap()
-        };
-        (run(1, 2), run(2, 1))
+    fn robot() -> Robot {
+        sim::load_robot(std::path::Path::new(sim::cli::DEFAULT_ROBOT)).unwrap()
     }
 
+    fn wrist_log(effects: PlantEffects, seed: u64, periods: usize) -> SimulatedLog {
+        let arm = sim::RobotRigidBody::new(&robot());
+        let plant = PlantParameters::default_robot();
+        let series =
+            FourierTrajectory::seeded_rest_to_rest(seed, &[0.0; 3], 5, 10.0, sim::cli::DEMO_LIMITS);
+        let tr = CommandedTrajectory::Fourier { series, periods };
+        let mut cfg = SimulationConfig::new(6, 3);
+        cfg.driven_joints = vec![3, 4, 5];
+        cfg.effects = effects;
+        cfg.seed = seed;
+        sim::simulate(&arm, &plant, &tr, &cfg).unwrap()
+    }
+
+    /// Issue 4's proof: with every unmodelled effect off, identifying the default robot
+    /// from its own simulated log recovers its true base parameters.
     #[test]
-    fn ideal_plant_is_explained_exactly() {
-        let (train, test) = wrist_logs(PlantEffects::none());
-        let rms = uncompensated_rms(
-            &sim::default_arm(),
-            &train,
-            &test,
-            &[3, 4, 5],
-            TorqueSource::Measured,
-        )
-        .unwrap();
-        for r in rms {
-            assert!(r.train_nm < 1e-8 && r.test_nm < 1e-8, "{r:?}");
+    fn ideal_plant_identification_recovers_true_base_parameters() {
+        let robot = robot();
+        let log = wrist_log(PlantEffects::none(), 1, 2);
+        let joints = [3, 4, 5];
+        let id = identify_log(&robot, &log, &joints, TorqueSource::Measured).unwrap();
+        // True standard parameters of the identified model: the robot file's inertia and
+        // the plant's viscous and Coulomb friction (the plant file must agree with it).
+        let truth = id.base.beta(&id.robot.standard_parameters());
+        let mut worst: f64 = 0.0;
+        for (b, t) in id.result.values.iter().zip(truth.iter()) {
+            worst = worst.max((b - t).abs() / t.abs().max(1e-3));
+        }
+        assert!(
+            worst < 1e-6,
+            "worst relative error {worst:e}: {:?} vs {:?}",
+            id.result.values,
+            truth
+        );
+        let test = wrist_log(PlantEffects::none(), 2, 1);
+        for (e, _) in residual_rms(&id, &test, &joints, TorqueSource::Measured) {
+            assert!(e < 1e-6, "test residual {e}");
         }
     }
 
     #[test]
     fn unmodelled_effects_leave_an_error() {
-        let (train, test) = wrist_logs(PlantEffects::all());
-        let rms = uncompensated_rms(
-            &sim::default_arm(),
-            &train,
-            &test,
+        let r = uncompensated_rms(
+            &robot(),
+            &wrist_log(PlantEffects::all(), 1, 2),
+            &wrist_log(PlantEffects::all(), 2, 1),
             &[3, 4, 5],
             TorqueSource::Measured,
         )
         .unwrap();
-        for r in rms {
-            assert!(r.train_nm > 0.1 && r.test_nm > 0.1, "{r:?}");
+        for x in r {
+            assert!(x.train_nm > 0.1 && x.test_nm > 0.1, "{x:?}");
         }
     }
 }
