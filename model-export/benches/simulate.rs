@@ -7,7 +7,8 @@ use model_export::sim::{
 use std::time::Instant;
 
 fn main() {
-    let arm = sim::default_arm();
+    let robot = model_export::robot::Robot::load(concat!(env!("CARGO_MANIFEST_DIR"), "/robots/default.toml")).expect("default robot");
+    let arm = sim::RobotRigidBody::new(&robot);
     let plant = PlantParameters::default_robot();
     let series = FourierTrajectory {
         period_s: 10.0,
