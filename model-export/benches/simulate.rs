@@ -7,7 +7,11 @@ use model_export::sim::{
 use std::time::Instant;
 
 fn main() {
-    let robot = model_export::robot::Robot::load(concat!(env!("CARGO_MANIFEST_DIR"), "/robots/default.toml")).expect("default robot");
+    let robot = model_export::robot::Robot::load(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/robots/default.toml"
+    ))
+    .expect("default robot");
     let arm = sim::RobotRigidBody::new(&robot);
     let plant = PlantParameters::default_robot();
     let series = FourierTrajectory {

@@ -1,8 +1,8 @@
 //! Issue 4's proofs about the default robot and the plant simulator.
 use model_export::robot::Robot;
 use model_export::sim::{
-    self, CommandedTrajectory, FourierTrajectory, PlantEffects, PlantParameters, RigidBodyModel, RobotRigidBody,
-    SimulationConfig,
+    self, CommandedTrajectory, FourierTrajectory, PlantEffects, PlantParameters, RigidBodyModel,
+    RobotRigidBody, SimulationConfig,
 };
 use rand::{Rng, SeedableRng};
 use std::path::Path;
@@ -32,7 +32,9 @@ fn toml_and_urdf_give_the_same_dynamics() {
         independent.inverse_dynamics(&q, &qd, &qdd, &mut c);
         let scale = a.iter().map(|x| x.abs()).fold(1.0, f64::max);
         for j in 0..6 {
-            worst = worst.max((a[j] - b[j]).abs() / scale).max((a[j] - c[j]).abs() / scale);
+            worst = worst
+                .max((a[j] - b[j]).abs() / scale)
+                .max((a[j] - c[j]).abs() / scale);
         }
     }
     assert!(worst < 1e-10, "worst relative difference {worst:e}");
@@ -43,28 +45,65 @@ fn toml_and_urdf_give_the_same_dynamics() {
 fn plant_file_agrees_with_robot_file() {
     let robot = Robot::load(robots_dir().join("default.toml")).unwrap();
     let plant = PlantParameters::default_robot();
-    assert_eq!(plant, PlantParameters::load(&robots_dir().join("default.plant.toml")).unwrap());
+    assert_eq!(
+        plant,
+        PlantParameters::load(&robots_dir().join("default.plant.toml")).unwrap()
+    );
     let urdf = Robot::load(robots_dir().join("default.urdf")).unwrap();
     for (j, (rj, pj)) in robot.joints.iter().zip(&plant.joints).enumerate() {
         let close = |a: f64, b: f64| (a - b).abs() <= 1e-12 * a.abs().max(1.0);
-        assert!(close(rj.drive.gear_ratio.unwrap(), pj.gear_ratio), "joint {j} gear");
-        assert!(close(rj.drive.torque_constant_nm_per_a.unwrap(), pj.motor_torque_constant_nm_a), "joint {j} kt");
-        assert!(close(rj.drive.drive_gain_nm_per_a.unwrap(), pj.drive_gain_nm_a()), "joint {j} gain");
-        assert!(close(rj.drive.rotor_inertia_kg_m2.unwrap(), pj.reflected_rotor_inertia_kgm2()), "joint {j} rotor");
-        assert!(close(rj.friction.viscous_nm_s_rad, pj.viscous_nms_rad), "joint {j} viscous");
-        assert!(close(rj.friction.coulomb_nm, pj.coulomb_nm), "joint {j} coulomb");
-        assert!(close(urdf.joints[j].friction.viscous_nm_s_rad, pj.viscous_nms_rad), "urdf joint {j} viscous");
-        assert!(close(urdf.joints[j].friction.coulomb_nm, pj.coulomb_nm), "urdf joint {j} coulomb");
+        assert!(
+            close(rj.drive.gear_ratio.unwrap(), pj.gear_ratio),
+            "joint {j} gear"
+        );
+        assert!(
+            close(
+                rj.drive.torque_constant_nm_per_a.unwrap(),
+                pj.motor_torque_constant_nm_a
+            ),
+            "joint {j} kt"
+        );
+        assert!(
+            close(rj.drive.drive_gain_nm_per_a.unwrap(), pj.drive_gain_nm_a()),
+            "joint {j} gain"
+        );
+        assert!(
+            close(
+                rj.drive.rotor_inertia_kg_m2.unwrap(),
+                pj.reflected_rotor_inertia_kgm2()
+            ),
+            "joint {j} rotor"
+        );
+        assert!(
+            close(rj.friction.viscous_nm_s_rad, pj.viscous_nms_rad),
+            "joint {j} viscous"
+        );
+        assert!(
+            close(rj.friction.coulomb_nm, pj.coulomb_nm),
+            "joint {j} coulomb"
+        );
+        assert!(
+            close(urdf.joints[j].friction.viscous_nm_s_rad, pj.viscous_nms_rad),
+            "urdf joint {j} viscous"
+        );
+        assert!(
+            close(urdf.joints[j].friction.coulomb_nm, pj.coulomb_nm),
+            "urdf joint {j} coulomb"
+        );
     }
 }
 
 fn run(seed: u64) -> Vec<u8> {
     let robot = Robot::load(robots_dir().join("default.toml")).unwrap();
     let arm = RobotRigidBody::new(&robot);
-    let series = FourierTrajectory::seeded_rest_to_rest(5, &[0.0; 6], 5, 10.0, sim::cli::DEMO_LIMITS);
+    let series =
+        FourierTrajectory::seeded_rest_to_rest(5, &[0.0; 6], 5, 10.0, sim::cli::DEMO_LIMITS);
     let tr = CommandedTrajectory::Fourier { series, periods: 1 };
     let mut cfg = SimulationConfig::new(6, 6);
-    cfg.effects = PlantEffects { kalman: true, ..PlantEffects::all() };
+    cfg.effects = PlantEffects {
+        kalman: true,
+        ..PlantEffects::all()
+    };
     cfg.seed = seed;
     let log = sim::simulate(&arm, &PlantParameters::default_robot(), &tr, &cfg).unwrap();
     let mut bytes = Vec::new();
@@ -89,7 +128,12 @@ fn cli_simulate_writes_log_and_rejects_bad_input() {
     let mut text = String::from("t,q1,qd1,qdd1\n");
     for k in 0..=100 {
         let t = k as f64 * 0.01;
-        text += &format!("{t},{},{},{}\n", 0.1 * t.sin(), 0.1 * t.cos(), -0.1 * t.sin());
+        text += &format!(
+            "{t},{},{},{}\n",
+            0.1 * t.sin(),
+            0.1 * t.cos(),
+            -0.1 * t.sin()
+        );
     }
     std::fs::write(&traj, &text).unwrap();
     let out = dir.path().join("log.csv");
@@ -118,4 +162,34 @@ fn cli_simulate_writes_log_and_rejects_bad_input() {
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(err.contains("line 3") && err.contains("qd1"), "{err}");
     assert!(!bad_out.exists());
+}
+
+/// A simulated log reads with the same layout as a real robot's (the UR10e dataset's
+/// column order: time, q1..6, qd1..6, i1..6 x drive gain) plus a header row.
+#[test]
+fn simulated_log_reads_like_a_real_robot_log() {
+    let robot = Robot::load(robots_dir().join("default.toml")).unwrap();
+    let arm = RobotRigidBody::new(&robot);
+    let series =
+        FourierTrajectory::seeded_rest_to_rest(9, &[0.0; 3], 5, 10.0, sim::cli::DEMO_LIMITS);
+    let tr = CommandedTrajectory::Fourier { series, periods: 1 };
+    let mut cfg = SimulationConfig::new(6, 3);
+    cfg.driven_joints = vec![3, 4, 5];
+    let plant = PlantParameters::default_robot();
+    let log = sim::simulate(&arm, &plant, &tr, &cfg).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("sim.csv");
+    log.save(&path).unwrap();
+    let gains: Vec<f64> = plant.joints.iter().map(|d| d.drive_gain_nm_a()).collect();
+    let mut layout = model_export::logs::LogLayout::sequential(6, true, true, Some(gains));
+    layout.header = Some(true);
+    let raw = model_export::logs::read_log(&path, &layout).unwrap();
+    assert_eq!(raw.time_s.len(), log.rows.len());
+    let tau = raw.torque_nm.unwrap();
+    let k = 437;
+    for j in 0..6 {
+        assert_eq!(raw.q_rad[j][k], log.rows[k][log.column("q", j).unwrap()]);
+        let logged = log.rows[k][log.column("tau", j).unwrap()];
+        assert!((tau[j][k] - logged).abs() <= 1e-12 * logged.abs().max(1.0));
+    }
 }
