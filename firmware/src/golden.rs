@@ -3,6 +3,7 @@
 //! Both sides generate the same inputs from integer arithmetic, run the same
 //! firmware functions on them, and `host-tests` compares the outputs bit for bit.
 
+use crate::dynamics::{JointModel, RigidBodyModel};
 use crate::math;
 
 /// Number of points per scalar function.
@@ -111,6 +112,119 @@ pub fn dot_output(case: usize) -> f32 {
     math::dot(&a, &b)
 }
 
+/// Number of dynamics golden cases (one record per joint torque each).
+pub const DYNAMICS_CASES: usize = 500;
+/// Joints of the golden dynamics model.
+pub const DYNAMICS_JOINTS: usize = 6;
+
+/// Modified-DH rows `(a_{i-1} [m], alpha_{i-1} [rad], d_i [m])` of the golden arm (UR5e-like).
+const GOLDEN_DH: [(f32, f32, f32); DYNAMICS_JOINTS] = [
+    (0.0, 0.0, 0.1625),
+    (0.0, core::f32::consts::FRAC_PI_2, 0.0),
+    (-0.425, 0.0, 0.0),
+    (-0.3922, 0.0, 0.1333),
+    (0.0, core::f32::consts::FRAC_PI_2, 0.0997),
+    (0.0, -core::f32::consts::FRAC_PI_2, 0.0996),
+];
+
+/// Body-frame standard parameters `[m, mx, my, mz, Ixx, Iyy, Izz, Ixy, Ixz, Iyz]` of
+/// the golden arm, and friction `(fv, fc, fo, Ia)`.
+const GOLDEN_LINKS: [([f32; 10], [f32; 4]); DYNAMICS_JOINTS] = [
+    (
+        [
+            3.7, 0.0, -0.0948, 0.0071, 0.0110, 0.0089, 0.0106, 0.0001, 0.0, 0.0003,
+        ],
+        [3.0, 5.0, 0.2, 0.3],
+    ),
+    (
+        [
+            8.393, 1.7835, 0.0, 0.9514, 0.1380, 0.6553, 0.5251, 0.0, 0.2032, 0.0,
+        ],
+        [2.5, 4.0, -0.1, 0.3],
+    ),
+    (
+        [
+            2.33, 0.3495, 0.0, 0.0617, 0.0056, 0.0865, 0.0835, 0.0, 0.0097, 0.0,
+        ],
+        [1.8, 3.0, 0.05, 0.1],
+    ),
+    (
+        [
+            1.219, 0.0, -0.0022, 0.0199, 0.0026, 0.0024, 0.0017, 0.0, 0.0, 0.0001,
+        ],
+        [1.0, 2.0, 0.0, 0.05],
+    ),
+    (
+        [
+            1.219, 0.0, 0.0022, 0.0199, 0.0026, 0.0024, 0.0017, 0.0, 0.0, 0.0,
+        ],
+        [1.0, 2.0, 0.0, 0.05],
+    ),
+    (
+        [
+            0.1879, 0.0, 0.0, -0.0002, 0.0001, 0.0001, 0.0001, 0.0, 0.0, 0.0,
+        ],
+        [0.8, 1.5, 0.0, 0.02],
+    ),
+];
+
+/// The fixed 6-DoF model of the `dynamics` suite (smoothed Coulomb, eps = 0.02 rad/s).
+pub fn dynamics_model() -> RigidBodyModel<DYNAMICS_JOINTS> {
+    let mut joints = [JointModel::ZERO; DYNAMICS_JOINTS];
+    for (j, ((a, alpha, d), (inertial, fr))) in joints
+        .iter_mut()
+        .zip(GOLDEN_DH.iter().zip(GOLDEN_LINKS.iter()))
+    {
+        let (s, c) = math::sin_cos(*alpha);
+        // Rx(alpha); translation a x + Rx(alpha) d z.
+        j.origin_rotation = [[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]];
+        j.origin_translation_m = [*a, -s * d, c * d];
+        j.inertial = *inertial;
+        j.viscous_nm_s_rad = fr[0];
+        j.coulomb_nm = fr[1];
+        j.offset_nm = fr[2];
+        j.rotor_inertia_kg_m2 = fr[3];
+    }
+    RigidBodyModel {
+        joints,
+        gravity_m_s2: [0.0, 0.0, -9.81],
+        coulomb_inv_eps_s_rad: 50.0,
+    }
+}
+
+/// The `case`-th golden state `(q [rad], qd [rad/s], qdd [rad/s^2])`: q in [-pi, pi),
+/// qd in [-3, 3), qdd in [-10, 10); case 0 is the rest state at q = 0.
+pub fn dynamics_state(
+    case: usize,
+) -> (
+    [f32; DYNAMICS_JOINTS],
+    [f32; DYNAMICS_JOINTS],
+    [f32; DYNAMICS_JOINTS],
+) {
+    let mut q = [0.0f32; DYNAMICS_JOINTS];
+    let mut qd = [0.0f32; DYNAMICS_JOINTS];
+    let mut qdd = [0.0f32; DYNAMICS_JOINTS];
+    if case == 0 {
+        return (q, qd, qdd);
+    }
+    for k in 0..DYNAMICS_JOINTS {
+        let seed = 0x0D1A_0000u32 ^ ((case * DYNAMICS_JOINTS + k) as u32).wrapping_mul(3);
+        q[k] = core::f32::consts::PI * (2.0 * unit(hash(seed)) - 1.0);
+        qd[k] = 3.0 * (2.0 * unit(hash(seed + 1)) - 1.0);
+        qdd[k] = 10.0 * (2.0 * unit(hash(seed + 2)) - 1.0);
+    }
+    (q, qd, qdd)
+}
+
+/// Joint torques [N*m] of the golden model in the `case`-th state.
+pub fn dynamics_output(
+    model: &RigidBodyModel<DYNAMICS_JOINTS>,
+    case: usize,
+) -> [f32; DYNAMICS_JOINTS] {
+    let (q, qd, qdd) = dynamics_state(case);
+    model.torques(&q, &qd, &qdd)
+}
+
 /// A 32-bit integer hash (lowbias32), the generator behind the golden inputs.
 pub const fn hash(mut x: u32) -> u32 {
     x ^= x >> 16;
@@ -131,11 +245,29 @@ mod tests {
     use super::*;
 
     #[test]
+    fn dynamics_cases_are_finite_and_distinct() {
+        let model = dynamics_model();
+        let mut previous = [0.0f32; DYNAMICS_JOINTS];
+        for case in 0..DYNAMICS_CASES {
+            let tau = dynamics_output(&model, case);
+            assert!(
+                tau.iter().all(|t| t.is_finite() && t.abs() < 1.0e3),
+                "{case}: {tau:?}"
+            );
+            assert_ne!(tau, previous);
+            previous = tau;
+        }
+    }
+
+    #[test]
     fn inputs_cover_the_range() {
         for f in MathFn::ALL {
             let (lo, hi) = f.range();
             assert_eq!(f.input(0), lo);
-            assert_eq!(f.input(MATH_POINTS - 1 - (MATH_POINTS - 1) % 2), f.input(9998));
+            assert_eq!(
+                f.input(MATH_POINTS - 1 - (MATH_POINTS - 1) % 2),
+                f.input(9998)
+            );
             for i in 0..MATH_POINTS {
                 let x = f.input(i);
                 assert!(x >= lo && x <= hi, "{} {i} {x}", f.name());

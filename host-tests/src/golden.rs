@@ -25,14 +25,19 @@ pub fn parse_report(text: &str) -> Result<Vec<Suite>> {
             None => {}
             Some("@suite") => {
                 let name = words.next().unwrap_or_default().to_string();
-                current = Some(Suite { name, records: Vec::new() });
+                current = Some(Suite {
+                    name,
+                    records: Vec::new(),
+                });
             }
             Some("@end") => match current.take() {
                 Some(s) => suites.push(s),
                 None => bail!("report line {line_no}: @end without @suite"),
             },
             Some("@pass") => passed = true,
-            Some(word) if word.starts_with('@') => bail!("report line {line_no}: target reported `{line}`"),
+            Some(word) if word.starts_with('@') => {
+                bail!("report line {line_no}: target reported `{line}`")
+            }
             Some(func) => {
                 let Some(suite) = current.as_mut() else {
                     bail!("report line {line_no}: record outside a suite: `{line}`");
@@ -82,6 +87,25 @@ pub fn host_dot() -> Vec<Record> {
         .collect()
 }
 
+/// The host's computation of the `dynamics` suite: one record per joint torque,
+/// function `tau<joint>`, index and input = the case number.
+pub fn host_dynamics() -> Vec<Record> {
+    let model = golden::dynamics_model();
+    let mut out = Vec::with_capacity(golden::DYNAMICS_CASES * golden::DYNAMICS_JOINTS);
+    for case in 0..golden::DYNAMICS_CASES {
+        let tau = golden::dynamics_output(&model, case);
+        for (j, t) in tau.iter().enumerate() {
+            out.push(Record::new(
+                &format!("tau{}", j + 1),
+                case,
+                case as u32,
+                t.to_bits(),
+            ));
+        }
+    }
+    out
+}
+
 /// Outcome of comparing one suite.
 #[derive(Debug)]
 pub struct SuiteCheck {
@@ -94,13 +118,20 @@ pub struct SuiteCheck {
 /// Compares every suite of a QEMU report with the host's computation.
 pub fn check_report(report: &str) -> Result<Vec<SuiteCheck>> {
     let suites = parse_report(report)?;
-    let host: [(&'static str, Vec<Record>); 2] = [("math", host_math()), ("dot", host_dot())];
+    let host: [(&'static str, Vec<Record>); 3] = [
+        ("math", host_math()),
+        ("dot", host_dot()),
+        ("dynamics", host_dynamics()),
+    ];
     let mut checks = Vec::new();
     for (name, host_records) in host {
         let Some(suite) = suites.iter().find(|s| s.name == name) else {
             bail!("the QEMU report has no `{name}` suite");
         };
-        checks.push(SuiteCheck { name, result: crate::compare::compare(&suite.records, &host_records) });
+        checks.push(SuiteCheck {
+            name,
+            result: crate::compare::compare(&suite.records, &host_records),
+        });
     }
     Ok(checks)
 }

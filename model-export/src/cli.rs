@@ -20,6 +20,15 @@ pub enum Command {
         #[arg(long, default_value_t = 9)]
         points: usize,
     },
+    /// Identify a robot's base parameters (rigid body + friction) from logs by least
+    /// squares; write the model JSON and print per-joint RMS errors.
+    ///
+    /// Example (UR10e data): model-export identify --robot ur10e.urdf --log a.csv
+    /// --log b.csv --validate c.csv -o ur10e-model.json
+    Identify(Box<crate::identify::commands::IdentifyArgs>),
+    /// Predict joint torques for a log or a CSV of states with the robot's nominal
+    /// parameters or an identified model (firmware f32 model); write them as CSV.
+    Torque(Box<crate::identify::commands::TorqueArgs>),
     /// Simulate the true plant along a commanded trajectory and write the controller's log (CSV).
     Simulate(crate::sim::cli::SimulateArgs),
     /// Identify rigid body + friction on simulated logs and print the per-joint uncompensated RMS table.
@@ -43,6 +52,8 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
             }
             Ok(())
         }
+        Command::Identify(a) => crate::identify::commands::identify(&a),
+        Command::Torque(a) => crate::identify::commands::torque(&a),
         Command::Simulate(args) => crate::sim::cli::run_simulate(&args),
         Command::PlantReport(args) => crate::sim::cli::run_plant_report(&args),
     }

@@ -59,6 +59,21 @@ pub struct JointFriction {
     pub offset_nm: Option<f64>,
 }
 
+/// The non-rigid-body terms of the model (the regressor's extra columns).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ModelTermsRef {
+    /// Viscous friction per joint.
+    pub viscous_friction: bool,
+    /// Coulomb friction per joint.
+    pub coulomb_friction: bool,
+    /// Constant offset per joint.
+    pub friction_offset: bool,
+    /// Coulomb sign smoothed as tanh(q̇ / eps) [rad/s]; `None` = hard sign.
+    pub coulomb_smoothing_rad_s: Option<f64>,
+    /// Reflected rotor inertia per joint.
+    pub rotor_inertia: bool,
+}
+
 /// A log used for identification or validation.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct LogRef {
@@ -94,6 +109,10 @@ pub struct ModelFile {
     pub modelled_joints: Vec<String>,
     /// Locked joints and their positions.
     pub locked_joints: Vec<LockedJoint>,
+    /// Model terms besides the rigid body.
+    pub model_terms: ModelTermsRef,
+    /// Seed of the random states the base parameters were computed from.
+    pub base_seed: u64,
     /// Drive gains [N·m/A] of all joints of the log (current → torque).
     pub drive_gains_nm_per_a: Vec<f64>,
     /// Base parameters (including friction parameters), in regressor column order.
@@ -188,6 +207,14 @@ mod tests {
             },
             modelled_joints: vec!["j1".into()],
             locked_joints: vec![],
+            model_terms: ModelTermsRef {
+                viscous_friction: true,
+                coulomb_friction: true,
+                friction_offset: false,
+                coulomb_smoothing_rad_s: Some(0.02),
+                rotor_inertia: false,
+            },
+            base_seed: 1,
             drive_gains_nm_per_a: vec![1.0],
             base_parameters: vec![BaseParameter {
                 name: "a".into(),

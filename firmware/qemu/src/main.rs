@@ -22,7 +22,10 @@ impl Report {
             Ok(h) => h,
             Err(()) => fail(),
         };
-        Report { buf: heapless::String::new(), host }
+        Report {
+            buf: heapless::String::new(),
+            host,
+        }
     }
 
     fn line(&mut self, args: core::fmt::Arguments) {
@@ -58,7 +61,13 @@ fn main() -> ! {
         for i in 0..golden::MATH_POINTS {
             let x = f.input(i);
             let y = f.eval(x);
-            out.line(format_args!("{} {} {:08x} {:08x}", f.name(), i, x.to_bits(), y.to_bits()));
+            out.line(format_args!(
+                "{} {} {:08x} {:08x}",
+                f.name(),
+                i,
+                x.to_bits(),
+                y.to_bits()
+            ));
         }
     }
     out.line(format_args!("@end math"));
@@ -66,9 +75,33 @@ fn main() -> ! {
     out.line(format_args!("@suite dot {}", golden::DOT_CASES));
     for case in 0..golden::DOT_CASES {
         let y = golden::dot_output(case);
-        out.line(format_args!("dot {} {:08x} {:08x}", case, case as u32, y.to_bits()));
+        out.line(format_args!(
+            "dot {} {:08x} {:08x}",
+            case,
+            case as u32,
+            y.to_bits()
+        ));
     }
     out.line(format_args!("@end dot"));
+
+    out.line(format_args!(
+        "@suite dynamics {}",
+        golden::DYNAMICS_CASES * golden::DYNAMICS_JOINTS
+    ));
+    let model = golden::dynamics_model();
+    for case in 0..golden::DYNAMICS_CASES {
+        let tau = golden::dynamics_output(&model, case);
+        for (j, t) in tau.iter().enumerate() {
+            out.line(format_args!(
+                "tau{} {} {:08x} {:08x}",
+                j + 1,
+                case,
+                case as u32,
+                t.to_bits()
+            ));
+        }
+    }
+    out.line(format_args!("@end dynamics"));
 
     out.line(format_args!("@pass"));
     out.flush();

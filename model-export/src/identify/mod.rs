@@ -367,16 +367,16 @@ fn solve_weighted(
     let p = ne.n_params;
     let mut h = DMatrix::<f64>::zeros(p, p);
     let mut g = DVector::<f64>::zeros(p);
-    for j in 0..ne.n_joints {
-        let w = 1.0 / (sigma[j] * sigma[j]);
-        h += &ne.ata[j] * w;
-        g.axpy(w, &ne.aty[j], 1.0);
+    for ((s, ata), aty) in sigma.iter().zip(&ne.ata).zip(&ne.aty) {
+        let w = 1.0 / (s * s);
+        h += ata * w;
+        g.axpy(w, aty, 1.0);
     }
     // Column equilibration.
     let d: Vec<f64> = (0..p).map(|i| h[(i, i)].sqrt()).collect();
     let dmax = d.iter().cloned().fold(0.0, f64::max);
     let zero: Vec<String> = (0..p)
-        .filter(|&i| !(d[i] > 1e-150 * dmax.max(1e-300)))
+        .filter(|&i| d[i].is_nan() || d[i] <= 1e-150 * dmax.max(1e-300))
         .map(name)
         .collect();
     if !zero.is_empty() {
@@ -490,6 +490,9 @@ impl ErrorAccumulator {
         }
     }
 }
+
+pub mod commands;
+pub mod pipeline;
 
 #[cfg(test)]
 mod tests;

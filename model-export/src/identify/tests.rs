@@ -1,6 +1,8 @@
 //! Identification on simulated data from a planar 2R arm written out by hand (base
 //! parameters ZZ1R, ZZ2, MX2, MY2, MX1R, MY1 and viscous/Coulomb friction per joint).
 
+#![allow(clippy::needless_range_loop)]
+
 use super::*;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;

@@ -9,6 +9,7 @@
 //! Every error names the file, the 1-based line and the field (column name or
 //! 1-based index) it concerns.
 
+pub mod args;
 pub mod preprocess;
 pub mod signal;
 
@@ -248,7 +249,7 @@ pub fn read_log(path: &Path, layout: &LogLayout) -> Result<RawLog, LogError> {
             ColumnRef::Index(0) => Err(LogError::new(
                 path,
                 None,
-                Some(format!("{role}")),
+                Some(role.to_string()),
                 "column indices are 1-based; 0 is not a column",
             )),
             ColumnRef::Index(i) => {

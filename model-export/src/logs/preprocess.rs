@@ -23,7 +23,8 @@ pub struct PreprocessOptions {
     pub torque_cutoff_hz: Option<f64>,
     /// Use the logged velocities instead of differentiating positions.
     pub use_logged_qd: bool,
-    /// Trim leading/trailing samples where every |q̇| is below this [rad/s].
+    /// Trim leading/trailing samples where every |q̇| is below this [rad/s] (a log that
+    /// never moves, e.g. a static pose, is kept whole).
     pub trim_rest_rad_s: Option<f64>,
     /// Scalar Kalman filter on the motor current: (process variance, measurement
     /// variance) [A²]; applied before the drive gain.
@@ -191,6 +192,10 @@ pub fn preprocess(raw: &RawLog, opt: &PreprocessOptions) -> Result<Samples, LogE
         while hi > lo && !moving(hi - 1) {
             hi -= 1;
         }
+        if lo == hi {
+            // A log that never moves (a static pose) is kept whole.
+            (lo, hi) = (0, n);
+        }
     }
     if hi - lo < need {
         return Err(err(
@@ -288,6 +293,17 @@ mod tests {
                 );
             }
         }
+    }
+
+    #[test]
+    fn static_log_is_kept_whole() {
+        let mut raw = sine_log(false);
+        for v in raw.q_rad[0].iter_mut() {
+            *v = 0.3;
+        }
+        let s = preprocess(&raw, &PreprocessOptions::default()).unwrap();
+        assert!(s.len() > 790, "{}", s.len());
+        assert!(s.qd_rad_s[0].iter().all(|v| v.abs() < 1e-12));
     }
 
     #[test]

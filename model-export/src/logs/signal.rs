@@ -25,7 +25,10 @@ impl ButterworthLowPass {
     /// sample rate `sample_hz`. `None` if the order is odd/zero or the cut-off is not
     /// below Nyquist.
     pub fn new(order: usize, cutoff_hz: f64, sample_hz: f64) -> Option<Self> {
-        if order == 0 || order % 2 != 0 || !(cutoff_hz > 0.0 && cutoff_hz < 0.5 * sample_hz) {
+        if order == 0
+            || !order.is_multiple_of(2)
+            || !(cutoff_hz > 0.0 && cutoff_hz < 0.5 * sample_hz)
+        {
             return None;
         }
         let k = (PI * cutoff_hz / sample_hz).tan();

@@ -141,13 +141,41 @@ pub(super) fn parse(text: &str, file: &Path) -> Result<Robot, RobotError> {
     };
     let parsed: DhFile = toml::from_str(text).map_err(|e| {
         let line = e.span().map(|s| line_of(text, s.start));
-        // toml names the key in its message; give the table path as the field.
         let msg = e.message().to_string();
-        let field = msg
+        // The key on the offending line, qualified by its [[joint]] block; else the
+        // key toml names in its message (missing/unknown fields).
+        let quoted = msg
             .split('`')
             .nth(1)
+            .filter(|k| k.chars().all(|c| c.is_alphanumeric() || c == '_'));
+        // (At the end of the input the span points past the last key: look back.)
+        let key_on_line = line.and_then(|l| {
+            text.lines()
+                .take(l)
+                .collect::<Vec<_>>()
+                .into_iter()
+                .rev()
+                .find_map(|t| {
+                    let (k, _) = t.split_once('=')?;
+                    let k = k.trim();
+                    (!k.is_empty() && !k.starts_with('[') && !k.starts_with('#'))
+                        .then(|| k.to_string())
+                })
+        });
+        let key = quoted
             .map(str::to_string)
+            .or(key_on_line)
             .unwrap_or_else(|| "<syntax>".to_string());
+        let block = line.map(|l| {
+            text.lines()
+                .take(l)
+                .filter(|t| t.trim_start().starts_with("[[joint]]"))
+                .count()
+        });
+        let field = match block {
+            Some(b) if b > 0 => format!("joint[{}].{key}", b - 1),
+            _ => key,
+        };
         err(line, field, msg)
     })?;
     if parsed.joint.is_empty() {

@@ -65,9 +65,9 @@ fn check_tags(text: &str) -> Result<(), (usize, String, String)> {
                 Some((open, _)) if open == name => {}
                 Some((open, oline)) => {
                     return Err((
-                        line,
-                        name.clone(),
-                        format!("closing </{name}> but <{open}> (line {oline}) is open"),
+                        oline,
+                        open.clone(),
+                        format!("<{open}> is not closed: </{name}> on line {line} comes first"),
                     ));
                 }
                 None => {
@@ -78,14 +78,56 @@ fn check_tags(text: &str) -> Result<(), (usize, String, String)> {
                     ));
                 }
             }
-        } else if !inner.ends_with('/') {
-            let name = inner.split_whitespace().next().unwrap_or("").to_string();
-            stack.push((name, line));
+        } else {
+            let name = inner
+                .split_whitespace()
+                .next()
+                .unwrap_or("")
+                .trim_end_matches('/')
+                .to_string();
+            check_numbers(&name, inner).map_err(|(field, msg)| (line, field, msg))?;
+            if !inner.ends_with('/') {
+                stack.push((name, line));
+            }
         }
         i += end + 1;
     }
     if let Some((open, line)) = stack.pop() {
         return Err((line, open.clone(), format!("<{open}> is never closed")));
+    }
+    Ok(())
+}
+
+/// Numeric attributes of the URDF elements this reader uses.
+const NUMERIC_ATTRIBUTES: [&str; 14] = [
+    "xyz", "rpy", "value", "ixx", "ixy", "ixz", "iyy", "iyz", "izz", "lower", "upper", "effort",
+    "velocity", "damping",
+];
+
+/// Checks that the numeric attributes of one tag (`inner`: the text between `<` and
+/// `>`) parse as numbers; returns (field, message) otherwise.
+fn check_numbers(tag: &str, inner: &str) -> Result<(), (String, String)> {
+    for attr in NUMERIC_ATTRIBUTES {
+        for quote in ['"', '\''] {
+            let key = format!(" {attr}={quote}");
+            let mut from = 0;
+            while let Some(off) = inner[from..].find(&key) {
+                let start = from + off + key.len();
+                let Some(len) = inner[start..].find(quote) else {
+                    break;
+                };
+                let value = &inner[start..start + len];
+                for word in value.split_whitespace() {
+                    if word.parse::<f64>().is_err() {
+                        return Err((
+                            format!("<{tag}> {attr}"),
+                            format!("`{word}` is not a number"),
+                        ));
+                    }
+                }
+                from = start + len;
+            }
+        }
     }
     Ok(())
 }

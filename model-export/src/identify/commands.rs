@@ -1,0 +1,692 @@
+//! The `identify` and `torque` subcommands.
+
+use super::pipeline::{self, LinearModel};
+use super::{IdentifyOptions, Weighting};
+use crate::base::BaseParameters;
+use crate::dynamics::firmware_model::build_firmware_model;
+use crate::logs::args::{LayoutArgs, PreprocessArgs};
+use crate::logs::{LogLayout, PreprocessOptions, Samples, preprocess, read_log, sha256_file};
+use crate::model_file::{
+    BaseParameter, ErrorReport, JointFriction, LockedJoint, LogRef, MODEL_SCHEMA_VERSION,
+    ModelFile, ModelTermsRef, RobotRef, write_atomic,
+};
+use crate::robot::{JointMode, Robot};
+use anyhow::{Context, bail};
+use clap::{Args, ValueEnum};
+use firmware::dynamics::RigidBodyModel;
+use nalgebra::{DMatrix, DVector};
+use std::path::{Path, PathBuf};
+
+/// Joint selection options.
+#[derive(Debug, Clone, Args)]
+pub struct JointArgs {
+    /// Lock joints at fixed positions: `J=Q` with 1-based joint J and Q in rad,
+    /// comma separated (e.g. `1=0,2=-1.57,3=0`); the other joints are modelled.
+    /// Without --lock, the robot file's selection applies (DH `locked_at`; URDF: all
+    /// joints modelled).
+    #[arg(long, value_name = "J=Q", value_delimiter = ',')]
+    pub lock: Vec<String>,
+    /// Model a constant torque offset per joint as well.
+    #[arg(long)]
+    pub friction_offset: bool,
+    /// Smooth the Coulomb sign as tanh(qd / EPS) [rad/s] instead of a hard sign.
+    #[arg(long, value_name = "EPS")]
+    pub coulomb_smoothing_rad_s: Option<f64>,
+}
+
+/// Row weighting choice.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum WeightingArg {
+    /// Ordinary least squares.
+    Ols,
+    /// Weighted least squares, per-joint weights 1/σⱼ² from an OLS first pass.
+    Wls,
+}
+
+/// `model-export identify`.
+#[derive(Debug, Clone, Args)]
+pub struct IdentifyArgs {
+    /// Robot description: URDF (.urdf) or DH table (.toml); default: the built-in
+    /// default robot (model-export/robots/default.toml).
+    #[arg(long, default_value = crate::sim::cli::DEFAULT_ROBOT)]
+    pub robot: PathBuf,
+    /// Identification logs (CSV), one or more.
+    #[arg(long = "log", required = true, value_name = "CSV")]
+    pub logs: Vec<PathBuf>,
+    /// Validation logs (CSV): predicted with the identified model, not used to fit.
+    #[arg(long = "validate", value_name = "CSV")]
+    pub validation: Vec<PathBuf>,
+    /// Output model file (JSON), written atomically.
+    #[arg(long, short)]
+    pub output: PathBuf,
+    /// Row weighting.
+    #[arg(long, value_enum, default_value_t = WeightingArg::Wls)]
+    pub weighting: WeightingArg,
+    /// Fail if any base parameter's relative standard deviation exceeds this [%].
+    #[arg(long, value_name = "PCT")]
+    pub max_rel_std_pct: Option<f64>,
+    /// Print every base parameter with its standard deviation.
+    #[arg(long)]
+    pub print_parameters: bool,
+    /// Joint selection.
+    #[command(flatten)]
+    pub joints: JointArgs,
+    /// Log columns.
+    #[command(flatten)]
+    pub layout: LayoutArgs,
+    /// Preprocessing.
+    #[command(flatten)]
+    pub pre: PreprocessArgs,
+}
+
+/// `model-export torque`.
+#[derive(Debug, Clone, Args)]
+pub struct TorqueArgs {
+    /// Robot description: URDF (.urdf) or DH table (.toml); default: the built-in
+    /// default robot (model-export/robots/default.toml).
+    #[arg(long, default_value = crate::sim::cli::DEFAULT_ROBOT)]
+    pub robot: PathBuf,
+    /// Identified model (JSON from `identify`); without it the robot's nominal
+    /// parameters (and its friction, if any) are used.
+    #[arg(long)]
+    pub model: Option<PathBuf>,
+    /// Input: a log or a CSV of states (see --layout states).
+    #[arg(long = "log", value_name = "CSV")]
+    pub log: PathBuf,
+    /// Output CSV: time, tau_model per modelled joint [N·m] (firmware f32 model), and
+    /// the measured torque per modelled joint when the input has effort columns.
+    #[arg(long, short)]
+    pub output: PathBuf,
+    /// Joint selection and model terms (ignored with --model: the model file's are used).
+    #[command(flatten)]
+    pub joints: JointArgs,
+    /// Log columns.
+    #[command(flatten)]
+    pub layout: LayoutArgs,
+    /// Preprocessing.
+    #[command(flatten)]
+    pub pre: PreprocessArgs,
+}
+
+/// Seed of the random states from which base parameters are computed (fixed, so a
+/// model file's base parameters can be recomputed and checked).
+pub const BASE_SEED: u64 = 2020;
+
+/// A robot with its base parameters: the [`LinearModel`] identified from logs.
+pub struct RobotBaseModel {
+    /// The robot (joint selection and model terms applied).
+    pub robot: Robot,
+    /// Its base parameters.
+    pub base: BaseParameters,
+}
+
+impl RobotBaseModel {
+    /// Computes the base parameters of `robot`.
+    pub fn new(robot: Robot) -> anyhow::Result<Self> {
+        let base = BaseParameters::compute(&robot, BASE_SEED)
+            .with_context(|| format!("{}: base parameters", robot.source.display()))?;
+        Ok(Self { robot, base })
+    }
+
+    /// Standard parameters equivalent to base parameter values `beta`.
+    pub fn equivalent_standard(&self, beta: &DVector<f64>) -> DVector<f64> {
+        self.base.equivalent_standard(beta)
+    }
+
+    /// Readable definition of each base parameter.
+    pub fn expressions(&self) -> Vec<String> {
+        self.base.expressions()
+    }
+}
+
+impl LinearModel for RobotBaseModel {
+    fn modelled_log_joints(&self) -> Vec<usize> {
+        self.robot.modelled_joints()
+    }
+
+    fn parameter_names(&self) -> Vec<String> {
+        self.base.names()
+    }
+
+    fn regressor_block(&self, states: &[(Vec<f64>, Vec<f64>, Vec<f64>)]) -> DMatrix<f64> {
+        let y = crate::dynamics::stack_regressors(
+            &self.robot,
+            states
+                .iter()
+                .map(|(q, qd, qdd)| (q.as_slice(), qd.as_slice(), qdd.as_slice())),
+        );
+        self.base.project(&y)
+    }
+}
+
+/// The firmware's f32 model for any supported joint count (1..=7).
+pub enum FirmwareModel {
+    /// 1 joint.
+    J1(RigidBodyModel<1>),
+    /// 2 joints.
+    J2(RigidBodyModel<2>),
+    /// 3 joints.
+    J3(RigidBodyModel<3>),
+    /// 4 joints.
+    J4(RigidBodyModel<4>),
+    /// 5 joints.
+    J5(RigidBodyModel<5>),
+    /// 6 joints.
+    J6(RigidBodyModel<6>),
+    /// 7 joints.
+    J7(RigidBodyModel<7>),
+}
+
+fn arr<const N: usize>(v: &[f64]) -> [f32; N] {
+    core::array::from_fn(|i| v[i] as f32)
+}
+
+impl FirmwareModel {
+    /// Builds the f32 model of `robot` with standard parameters `theta`.
+    pub fn build(robot: &Robot, theta: &DVector<f64>) -> anyhow::Result<Self> {
+        Ok(match robot.n_modelled() {
+            1 => Self::J1(build_firmware_model(robot, theta)?),
+            2 => Self::J2(build_firmware_model(robot, theta)?),
+            3 => Self::J3(build_firmware_model(robot, theta)?),
+            4 => Self::J4(build_firmware_model(robot, theta)?),
+            5 => Self::J5(build_firmware_model(robot, theta)?),
+            6 => Self::J6(build_firmware_model(robot, theta)?),
+            7 => Self::J7(build_firmware_model(robot, theta)?),
+            n => bail!(
+                "{}: {n} modelled joints; the firmware model supports 1 to 7",
+                robot.source.display()
+            ),
+        })
+    }
+
+    /// Torques [N·m] via `firmware::dynamics::RigidBodyModel::torques` (f32).
+    pub fn torques(&self, q: &[f64], qd: &[f64], qdd: &[f64]) -> Vec<f64> {
+        fn go<const N: usize>(
+            m: &RigidBodyModel<N>,
+            q: &[f64],
+            qd: &[f64],
+            qdd: &[f64],
+        ) -> Vec<f64> {
+            m.torques(&arr(q), &arr(qd), &arr(qdd))
+                .iter()
+                .map(|&t| t as f64)
+                .collect()
+        }
+        match self {
+            Self::J1(m) => go(m, q, qd, qdd),
+            Self::J2(m) => go(m, q, qd, qdd),
+            Self::J3(m) => go(m, q, qd, qdd),
+            Self::J4(m) => go(m, q, qd, qdd),
+            Self::J5(m) => go(m, q, qd, qdd),
+            Self::J6(m) => go(m, q, qd, qdd),
+            Self::J7(m) => go(m, q, qd, qdd),
+        }
+    }
+
+    /// Predictions for every sample of a log: `out[joint][sample]`.
+    pub fn predict(&self, joints: &[usize], s: &Samples) -> Vec<Vec<f64>> {
+        let mut out: Vec<Vec<f64>> = joints.iter().map(|_| Vec::with_capacity(s.len())).collect();
+        for (q, qd, qdd) in pipeline::states(s, joints, 0, s.len()) {
+            for (r, t) in self.torques(&q, &qd, &qdd).into_iter().enumerate() {
+                out[r].push(t);
+            }
+        }
+        out
+    }
+}
+
+/// Loads the robot and applies the joint selection and model terms.
+pub fn load_robot(path: &Path, j: &JointArgs) -> anyhow::Result<Robot> {
+    let mut robot = Robot::load(path)?;
+    if !j.lock.is_empty() {
+        robot.model_all_joints();
+    }
+    for spec in &j.lock {
+        let (a, b) = spec
+            .split_once('=')
+            .with_context(|| format!("--lock '{spec}': expected J=Q (1-based joint, rad)"))?;
+        let i: usize = a
+            .trim()
+            .parse()
+            .with_context(|| format!("--lock '{spec}': joint"))?;
+        let q: f64 = b
+            .trim()
+            .parse()
+            .with_context(|| format!("--lock '{spec}': position"))?;
+        if i == 0 || i > robot.dof() || !q.is_finite() {
+            bail!(
+                "--lock '{spec}': joint must be 1..={} and the position finite",
+                robot.dof()
+            );
+        }
+        robot.lock_joint(i - 1, q);
+    }
+    robot.terms.friction_offset |= j.friction_offset;
+    if let Some(eps) = j.coulomb_smoothing_rad_s {
+        robot.terms.coulomb_smoothing_rad_s = Some(eps);
+    }
+    if robot.n_modelled() == 0 {
+        bail!(
+            "{}: every joint is locked; nothing to model",
+            path.display()
+        );
+    }
+    Ok(robot)
+}
+
+fn load_logs(
+    paths: &[PathBuf],
+    layout: &LogLayout,
+    pre: &PreprocessOptions,
+    dof: usize,
+) -> anyhow::Result<Vec<Samples>> {
+    if layout.n_joints() != dof {
+        bail!(
+            "the log layout has {} joints but the robot has {dof} (use --log-joints)",
+            layout.n_joints()
+        );
+    }
+    paths
+        .iter()
+        .map(|p| {
+            let raw = read_log(p, layout)?;
+            Ok(preprocess(&raw, pre)?)
+        })
+        .collect()
+}
+
+fn log_refs(logs: &[Samples]) -> Vec<LogRef> {
+    logs.iter()
+        .map(|s| LogRef {
+            path: s.path.display().to_string(),
+            sha256: s.sha256.clone(),
+            samples: s.len(),
+        })
+        .collect()
+}
+
+/// Prints a per-joint table.
+fn print_table(title: &str, joint_names: &[String], rows: &[(String, Vec<f64>, Vec<f64>, usize)]) {
+    let lw = rows
+        .iter()
+        .map(|r| r.0.len())
+        .chain([18])
+        .max()
+        .unwrap_or(18);
+    let w: Vec<usize> = joint_names.iter().map(|n| n.len().max(9)).collect();
+    println!("{title}");
+    print!("{:<lw$} {:>7}", "data", "samples");
+    for (n, w) in joint_names.iter().zip(&w) {
+        print!(" {n:>w$}");
+    }
+    println!();
+    for (name, rms, nrms, samples) in rows {
+        print!("{name:<lw$} {samples:>7}");
+        for (r, w) in rms.iter().zip(&w) {
+            print!(" {r:>w$.3}");
+        }
+        println!();
+        print!("{:<lw$} {:>7}", "  (normalised, %)", "");
+        for (r, w) in nrms.iter().zip(&w) {
+            let cell = format!("{r:.1}%");
+            print!(" {cell:>w$}");
+        }
+        println!();
+    }
+}
+
+fn file_label(p: &Path) -> String {
+    p.file_name()
+        .map(|f| f.to_string_lossy().into_owned())
+        .unwrap_or_else(|| p.display().to_string())
+}
+
+/// Runs `identify`.
+pub fn identify(a: &IdentifyArgs) -> anyhow::Result<()> {
+    let robot = load_robot(&a.robot, &a.joints)?;
+    let robot_hash =
+        sha256_file(&a.robot).with_context(|| format!("{}: cannot read", a.robot.display()))?;
+    let layout = a.layout.layout()?;
+    let pre = a.pre.options()?;
+    let id_logs = load_logs(&a.logs, &layout, &pre, robot.dof())?;
+    let val_logs = load_logs(&a.validation, &layout, &pre, robot.dof())?;
+    for s in id_logs.iter() {
+        if s.torque_nm.is_none() {
+            bail!(
+                "{}: no torque or current columns; cannot identify from it",
+                s.path.display()
+            );
+        }
+    }
+    let model = RobotBaseModel::new(robot)?;
+    let names = model.parameter_names();
+    let joints = model.modelled_log_joints();
+    let joint_names: Vec<String> = joints
+        .iter()
+        .map(|&j| model.robot.joints[j].name.clone())
+        .collect();
+
+    let t0 = std::time::Instant::now();
+    let mut ne = pipeline::accumulate(&model, &id_logs);
+    let opt = IdentifyOptions {
+        weighting: match a.weighting {
+            WeightingArg::Ols => Weighting::Ordinary,
+            WeightingArg::Wls => Weighting::PerJointFromOls,
+        },
+        max_relative_std_pct: a.max_rel_std_pct,
+        ..Default::default()
+    };
+    // Errors name base parameters by their definitions ("b36 = fv6").
+    let labels = model.expressions();
+    let id = super::solve(&mut ne, &labels, &opt)
+        .with_context(|| format!("identification from {} log(s) failed", id_logs.len()))?;
+    let elapsed = t0.elapsed();
+    let beta = DVector::from_vec(id.values.clone());
+    let theta = model.equivalent_standard(&beta);
+    let fw = FirmwareModel::build(&model.robot, &theta)?;
+
+    // Reports with the firmware's f32 model, cross-checked against Y·β in f64.
+    let mut reports = Vec::new();
+    let mut table = Vec::new();
+    let mut max_diff: f64 = 0.0;
+    let mut max_tau: f64 = 0.0;
+    let mut all_id = Vec::new();
+    for (set, logs) in [("identification", &id_logs), ("validation", &val_logs)] {
+        let mut accs = Vec::new();
+        for s in logs.iter() {
+            let p32 = fw.predict(&joints, s);
+            let p64 = pipeline::predict(&model, &beta, s);
+            max_diff = max_diff.max(pipeline::max_abs_difference(&p32, &p64));
+            max_tau = max_tau.max(p64.iter().flatten().fold(0.0, |m, v| m.max(v.abs())));
+            if let Some(acc) = pipeline::errors(&p32, &joints, s) {
+                let e = acc.finish();
+                table.push((
+                    format!("{set}: {}", file_label(&s.path)),
+                    e.rms_nm.clone(),
+                    e.nrms_pct.clone(),
+                    e.samples,
+                ));
+                reports.push(ErrorReport {
+                    data: format!("{set}: {}", s.path.display()),
+                    rms_nm: e.rms_nm,
+                    nrms_pct: e.nrms_pct,
+                    samples: e.samples,
+                });
+                accs.push(acc);
+            }
+        }
+        if !accs.is_empty() {
+            let e = pipeline::merged_errors(&accs, joints.len());
+            table.push((
+                format!("{set}: all"),
+                e.rms_nm.clone(),
+                e.nrms_pct.clone(),
+                e.samples,
+            ));
+            reports.push(ErrorReport {
+                data: format!("{set}: all"),
+                rms_nm: e.rms_nm,
+                nrms_pct: e.nrms_pct,
+                samples: e.samples,
+            });
+        }
+        if set == "identification" {
+            all_id = accs;
+        }
+    }
+    let _ = all_id;
+    // f32 evaluation vs f64: the f32 model must agree to single-precision accuracy.
+    let tol = 1e-3 * max_tau.max(1.0);
+    if max_diff.is_nan() || max_diff > tol {
+        bail!(
+            "firmware f32 model and f64 regressor disagree by {max_diff:.3e} N·m (limit {tol:.3e}); not writing {}",
+            a.output.display()
+        );
+    }
+
+    let expressions = model.expressions();
+    let base_parameters: Vec<BaseParameter> = (0..names.len())
+        .map(|i| BaseParameter {
+            name: names[i].clone(),
+            expression: expressions[i].clone(),
+            value: id.values[i],
+            std: id.std[i],
+            relative_std_pct: id.relative_std_pct[i],
+        })
+        .collect();
+    let friction = joints
+        .iter()
+        .map(|&j| {
+            let find = |prefix: &str| {
+                let std_name = format!("{prefix}{}", j + 1);
+                base_parameters
+                    .iter()
+                    .find(|b| {
+                        b.expression.split_once(" = ").map(|(_, d)| d.trim())
+                            == Some(std_name.as_str())
+                    })
+                    .map(|b| b.value)
+            };
+            JointFriction {
+                joint: model.robot.joints[j].name.clone(),
+                viscous_nm_s_rad: find("fv"),
+                coulomb_nm: find("fc"),
+                offset_nm: find("fo"),
+            }
+        })
+        .collect();
+    let locked_joints = model
+        .robot
+        .joints
+        .iter()
+        .filter_map(|j| match j.mode {
+            JointMode::Locked { q_rad } => Some(LockedJoint {
+                name: j.name.clone(),
+                position_rad: q_rad,
+            }),
+            JointMode::Modelled => None,
+        })
+        .collect();
+    let drive_gains_nm_per_a = match &layout.effort {
+        Some(crate::logs::Effort::CurrentA {
+            drive_gains_nm_per_a,
+            ..
+        }) => drive_gains_nm_per_a.clone(),
+        _ => Vec::new(),
+    };
+    let file = ModelFile {
+        schema_version: MODEL_SCHEMA_VERSION,
+        robot: RobotRef {
+            name: model.robot.name.clone(),
+            source_path: a.robot.display().to_string(),
+            sha256: robot_hash,
+        },
+        modelled_joints: joint_names.clone(),
+        locked_joints,
+        model_terms: ModelTermsRef {
+            viscous_friction: model.robot.terms.viscous_friction,
+            coulomb_friction: model.robot.terms.coulomb_friction,
+            friction_offset: model.robot.terms.friction_offset,
+            coulomb_smoothing_rad_s: model.robot.terms.coulomb_smoothing_rad_s,
+            rotor_inertia: model.robot.terms.rotor_inertia,
+        },
+        base_seed: BASE_SEED,
+        drive_gains_nm_per_a,
+        base_parameters,
+        friction,
+        condition_number: id.condition_number,
+        condition_number_scaled: id.condition_number_scaled,
+        weighting: match a.weighting {
+            WeightingArg::Ols => "ordinary".into(),
+            WeightingArg::Wls => "weighted (per-joint sigma from OLS residuals)".into(),
+        },
+        joint_sigma_nm: id.joint_sigma_nm.clone(),
+        identification_logs: log_refs(&id_logs),
+        validation_logs: log_refs(&val_logs),
+        errors: reports,
+        preprocessing: serde_json::to_value(&pre)?,
+    };
+
+    if a.print_parameters {
+        println!(
+            "{:<8} {:>14} {:>12} {:>9}  definition",
+            "name", "value", "std", "rel std"
+        );
+        for b in &file.base_parameters {
+            println!(
+                "{:<8} {:>14.6} {:>12.4e} {:>8.2}%  {}",
+                b.name, b.value, b.std, b.relative_std_pct, b.expression
+            );
+        }
+    }
+    println!(
+        "identified {} base parameters from {} samples of {} log(s) in {:.3} s; condition number {:.4e} (column-scaled {:.4e})",
+        names.len(),
+        id.samples,
+        id_logs.len(),
+        elapsed.as_secs_f64(),
+        id.condition_number,
+        id.condition_number_scaled
+    );
+    print!("per-joint noise sigma [N·m]:");
+    for s in &id.joint_sigma_nm {
+        print!(" {s:.4}");
+    }
+    println!();
+    print_table(
+        "per-joint RMS torque error [N·m] (firmware f32 model)",
+        &joint_names,
+        &table,
+    );
+    println!("f32 firmware model vs f64 regressor: max |difference| {max_diff:.3e} N·m");
+    file.write(&a.output)?;
+    println!("wrote {}", a.output.display());
+    Ok(())
+}
+
+/// Runs `torque`.
+pub fn torque(a: &TorqueArgs) -> anyhow::Result<()> {
+    let layout = a.layout.layout()?;
+    let pre = a.pre.options()?;
+    let (robot, theta) = match &a.model {
+        None => {
+            let robot = load_robot(&a.robot, &a.joints)?;
+            let theta = robot.standard_parameters();
+            (robot, theta)
+        }
+        Some(mp) => {
+            let file = ModelFile::read(mp)?;
+            let hash = sha256_file(&a.robot)
+                .with_context(|| format!("{}: cannot read", a.robot.display()))?;
+            if hash != file.robot.sha256 {
+                bail!(
+                    "{}: robot file differs from the one the model was identified for ({}, sha256 {})",
+                    a.robot.display(),
+                    file.robot.source_path,
+                    file.robot.sha256
+                );
+            }
+            // Joint selection and model terms come from the model file.
+            let mut robot = Robot::load(&a.robot)?;
+            robot.model_all_joints();
+            let t = &file.model_terms;
+            robot.terms.viscous_friction = t.viscous_friction;
+            robot.terms.coulomb_friction = t.coulomb_friction;
+            robot.terms.friction_offset = t.friction_offset;
+            robot.terms.coulomb_smoothing_rad_s = t.coulomb_smoothing_rad_s;
+            robot.terms.rotor_inertia = t.rotor_inertia;
+            if file.base_seed != BASE_SEED {
+                bail!(
+                    "{}, field base_seed: {} (this build computes base parameters with seed {BASE_SEED})",
+                    mp.display(),
+                    file.base_seed
+                );
+            }
+            for l in &file.locked_joints {
+                let i = robot
+                    .joints
+                    .iter()
+                    .position(|x| x.name == l.name)
+                    .with_context(|| {
+                        format!(
+                            "{}, field locked_joints: no joint '{}' in the robot",
+                            mp.display(),
+                            l.name
+                        )
+                    })?;
+                robot.lock_joint(i, l.position_rad);
+            }
+            let model = RobotBaseModel::new(robot)?;
+            let names = model.parameter_names();
+            let expr = model.expressions();
+            if names.len() != file.base_parameters.len()
+                || file
+                    .base_parameters
+                    .iter()
+                    .zip(names.iter().zip(&expr))
+                    .any(|(b, (n, e))| &b.name != n || &b.expression != e)
+            {
+                bail!(
+                    "{}, field base_parameters: they do not match the base parameters of {} with this joint selection and model terms (--friction-offset, --coulomb-smoothing-rad-s)",
+                    mp.display(),
+                    a.robot.display()
+                );
+            }
+            let beta =
+                DVector::from_iterator(names.len(), file.base_parameters.iter().map(|b| b.value));
+            let theta = model.equivalent_standard(&beta);
+            (model.robot, theta)
+        }
+    };
+    let fw = FirmwareModel::build(&robot, &theta)?;
+    let joints = robot.modelled_joints();
+    let raw = read_log(&a.log, &layout)?;
+    if raw.q_rad.len() != robot.dof() {
+        bail!(
+            "{}: the log has {} joints but the robot has {}",
+            a.log.display(),
+            raw.q_rad.len(),
+            robot.dof()
+        );
+    }
+    let s = preprocess(&raw, &pre)?;
+    let pred = fw.predict(&joints, &s);
+    let mut out = String::new();
+    out.push_str("time_s");
+    for &j in &joints {
+        out.push_str(&format!(",tau_model_{}_nm", robot.joints[j].name));
+    }
+    if s.torque_nm.is_some() {
+        for &j in &joints {
+            out.push_str(&format!(",tau_measured_{}_nm", robot.joints[j].name));
+        }
+    }
+    out.push('\n');
+    for k in 0..s.len() {
+        out.push_str(&format!("{:.6}", s.time_s[k]));
+        for p in &pred {
+            out.push_str(&format!(",{:.6}", p[k]));
+        }
+        if let Some(t) = &s.torque_nm {
+            for &j in &joints {
+                out.push_str(&format!(",{:.6}", t[j][k]));
+            }
+        }
+        out.push('\n');
+    }
+    write_atomic(&a.output, out.as_bytes())?;
+    if let Some(acc) = pipeline::errors(&pred, &joints, &s) {
+        let e = acc.finish();
+        let names: Vec<String> = joints
+            .iter()
+            .map(|&j| robot.joints[j].name.clone())
+            .collect();
+        print_table(
+            "per-joint RMS torque error [N·m] (firmware f32 model)",
+            &names,
+            &[(file_label(&a.log), e.rms_nm, e.nrms_pct, e.samples)],
+        );
+    }
+    println!("wrote {} ({} samples)", a.output.display(), s.len());
+    Ok(())
+}

@@ -1,0 +1,464 @@
+//! Identification end to end: simulated logs of a UR-type 6R arm (torque = regressor ×
+//! true parameters) written as CSV, identified through the library and through the
+//! `model-export identify` binary; bad inputs through the binary.
+#![allow(clippy::needless_range_loop)]
+
+use model_export::base::BaseParameters;
+use model_export::identify::commands::{
+    BASE_SEED, FirmwareModel, JointArgs, RobotBaseModel, load_robot,
+};
+use model_export::identify::pipeline::{self, LinearModel};
+use model_export::identify::{IdentifyOptions, Weighting, solve};
+use model_export::logs::Samples;
+use model_export::model_file::ModelFile;
+use nalgebra::DVector;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, Normal};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+const ROBOT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/ur_type_6r.toml");
+
+fn robot_model() -> RobotBaseModel {
+    let joints = JointArgs {
+        lock: vec![],
+        friction_offset: false,
+        coulomb_smoothing_rad_s: None,
+    };
+    RobotBaseModel::new(load_robot(Path::new(ROBOT), &joints).unwrap()).unwrap()
+}
+
+/// A Fourier excitation (5 harmonics, 10 s period) sampled at `t`.
+fn fourier_states(t: &[f64], seed: u64) -> Samples {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let w = 2.0 * std::f64::consts::PI / 10.0;
+    let n = 6;
+    let mut s = Samples {
+        path: PathBuf::from("sim"),
+        sha256: String::new(),
+        time_s: t.to_vec(),
+        q_rad: vec![Vec::new(); n],
+        qd_rad_s: vec![Vec::new(); n],
+        qdd_rad_s2: vec![Vec::new(); n],
+        torque_nm: None,
+    };
+    for j in 0..n {
+        let q0: f64 = rng.gen_range(-1.0..1.0);
+        let c: Vec<(f64, f64)> = (0..5)
+            .map(|_| (rng.gen_range(-0.5..0.5), rng.gen_range(-0.5..0.5)))
+            .collect();
+        for &tk in t {
+            let (mut q, mut qd, mut qdd) = (q0, 0.0, 0.0);
+            for (h, (a, b)) in c.iter().enumerate() {
+                let wl = w * (h + 1) as f64;
+                let (sn, cs) = (wl * tk).sin_cos();
+                q += a / wl * sn - b / wl * cs;
+                qd += a * cs + b * sn;
+                qdd += -a * wl * sn + b * wl * cs;
+            }
+            s.q_rad[j].push(q);
+            s.qd_rad_s[j].push(qd);
+            s.qdd_rad_s2[j].push(qdd);
+        }
+    }
+    s
+}
+
+// Noise-free recovery: every base parameter to 1e-6 relative; parameters whose true
+// value is exactly 0 (no relative error exists) to 1e-9 of the largest parameter.
+
+/// True base parameters: those of the robot's nominal standard parameters.
+fn true_beta(m: &RobotBaseModel) -> DVector<f64> {
+    m.base.beta(&m.robot.standard_parameters())
+}
+
+fn simulate(m: &RobotBaseModel, samples: usize, seed: u64, noise_nm: Option<&[f64]>) -> Samples {
+    let t: Vec<f64> = (0..samples).map(|k| k as f64 * 0.01).collect();
+    let mut s = fourier_states(&t, seed);
+    let mut tau = pipeline::predict(m, &true_beta(m), &s);
+    if let Some(sig) = noise_nm {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed + 1);
+        for (j, col) in tau.iter_mut().enumerate() {
+            let d = Normal::new(0.0, sig[j]).unwrap();
+            col.iter_mut().for_each(|v| *v += d.sample(&mut rng));
+        }
+    }
+    s.torque_nm = Some(tau);
+    s
+}
+
+#[test]
+fn six_dof_noise_free_recovers_base_parameters_to_1e_6() {
+    let m = robot_model();
+    assert_eq!(m.base.count(), m.parameter_names().len());
+    let logs = [simulate(&m, 4000, 1, None)];
+    let beta = true_beta(&m);
+    let scale = beta.amax();
+    for w in [Weighting::Ordinary, Weighting::PerJointFromOls] {
+        let mut ne = pipeline::accumulate(&m, &logs);
+        let opt = IdentifyOptions {
+            weighting: w.clone(),
+            ..Default::default()
+        };
+        let id = solve(&mut ne, &m.parameter_names(), &opt).unwrap();
+        for i in 0..beta.len() {
+            let err = (id.values[i] - beta[i]).abs();
+            assert!(
+                err <= (1e-6 * beta[i].abs()).max(1e-9 * scale),
+                "{w:?} {}: {} vs {} ({})",
+                m.parameter_names()[i],
+                id.values[i],
+                beta[i],
+                m.expressions()[i]
+            );
+        }
+    }
+}
+
+#[test]
+fn six_dof_noisy_estimates_lie_within_three_std() {
+    let m = robot_model();
+    let sigma = [1.0, 1.0, 0.5, 0.2, 0.2, 0.1];
+    let logs = [simulate(&m, 20_000, 2, Some(&sigma))];
+    let beta = true_beta(&m);
+    let mut ne = pipeline::accumulate(&m, &logs);
+    let opt = IdentifyOptions {
+        weighting: Weighting::PerJointFromOls,
+        ..Default::default()
+    };
+    let id = solve(&mut ne, &m.parameter_names(), &opt).unwrap();
+    let mut worst: f64 = 0.0;
+    for i in 0..beta.len() {
+        let z = (id.values[i] - beta[i]).abs() / id.std[i];
+        worst = worst.max(z);
+        assert!(
+            z < 3.0,
+            "{}: {} vs {} std {}",
+            m.parameter_names()[i],
+            id.values[i],
+            beta[i],
+            id.std[i]
+        );
+    }
+    for j in 0..6 {
+        assert!(
+            (id.joint_sigma_nm[j] / sigma[j] - 1.0).abs() < 0.05,
+            "{:?}",
+            id.joint_sigma_nm
+        );
+    }
+    println!(
+        "largest |error| / std over {} base parameters: {worst:.2}",
+        beta.len()
+    );
+}
+
+#[test]
+fn firmware_f32_model_matches_f64_regressor_with_identified_parameters() {
+    let m = robot_model();
+    let s = simulate(&m, 500, 3, None);
+    let theta = m.equivalent_standard(&true_beta(&m));
+    let fw = FirmwareModel::build(&m.robot, &theta).unwrap();
+    let joints = m.modelled_log_joints();
+    let p32 = fw.predict(&joints, &s);
+    let p64 = pipeline::predict(&m, &true_beta(&m), &s);
+    let scale = p64.iter().flatten().fold(0.0f64, |a, v| a.max(v.abs()));
+    let diff = pipeline::max_abs_difference(&p32, &p64);
+    assert!(
+        diff < 1e-4 * scale,
+        "max diff {diff} (torque scale {scale})"
+    );
+    // The base parameters recomputed with the fixed seed are identical.
+    let again = BaseParameters::compute(&m.robot, BASE_SEED).unwrap();
+    assert_eq!(again.expressions(), m.expressions());
+}
+
+// ---- through the binary ----
+
+fn bin() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_model-export"))
+}
+
+/// Writes a log in the `torque` preset layout plus qdd columns: time, q, qd, tau, qdd.
+fn write_log(path: &Path, s: &Samples) {
+    let mut out = String::new();
+    for k in 0..s.len() {
+        out.push_str(&format!("{:e}", s.time_s[k]));
+        let tau = s.torque_nm.as_ref().unwrap();
+        for v in [&s.q_rad, &s.qd_rad_s, tau, &s.qdd_rad_s2] {
+            for col in v.iter() {
+                out.push_str(&format!(",{:e}", col[k]));
+            }
+        }
+        out.push('\n');
+    }
+    std::fs::write(path, out).unwrap();
+}
+
+const EXACT: [&str; 12] = [
+    "--layout",
+    "torque",
+    "--qdd-cols",
+    "20,21,22,23,24,25",
+    "--use-logged-qd",
+    "--q-cutoff-hz",
+    "0",
+    "--torque-cutoff-hz",
+    "0",
+    "--trim-rest-rad-s",
+    "0",
+    "--resample-hz",
+];
+
+#[test]
+fn cli_identify_recovers_parameters_and_torque_evaluates_them() {
+    let m = robot_model();
+    let d = tempfile::tempdir().unwrap();
+    let log = d.path().join("sim.csv");
+    let val = d.path().join("val.csv");
+    write_log(&log, &simulate(&m, 3000, 4, None));
+    write_log(&val, &simulate(&m, 1000, 5, None));
+    let model = d.path().join("model.json");
+    let out = bin()
+        .args(["identify", "--robot", ROBOT, "--log"])
+        .arg(&log)
+        .arg("--validate")
+        .arg(&val)
+        .arg("-o")
+        .arg(&model)
+        .args(EXACT)
+        .arg("100")
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{}\n{stdout}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(stdout.contains("per-joint RMS torque error"), "{stdout}");
+    let file = ModelFile::read(&model).unwrap();
+    let beta = true_beta(&m);
+    let scale = beta.amax();
+    for (b, t) in file.base_parameters.iter().zip(beta.iter()) {
+        assert!(
+            (b.value - t).abs() <= (1e-6 * t.abs()).max(1e-9 * scale),
+            "{}: {} vs {t}",
+            b.expression,
+            b.value
+        );
+    }
+    assert_eq!(
+        file.identification_logs[0].sha256,
+        model_export::logs::sha256_file(&log).unwrap()
+    );
+    assert_eq!(file.friction.len(), 6);
+    assert!((file.friction[3].viscous_nm_s_rad.unwrap() - 1.5).abs() < 1e-6);
+    // f32 model RMS on validation data: single-precision level only.
+    let val_all = file
+        .errors
+        .iter()
+        .find(|e| e.data == "validation: all")
+        .unwrap();
+    assert!(
+        val_all.rms_nm.iter().all(|r| *r < 1e-3),
+        "{:?}",
+        val_all.rms_nm
+    );
+
+    // torque: identified model and nominal parameters give the same torques here.
+    for with_model in [true, false] {
+        let csv = d.path().join(format!("tau{with_model}.csv"));
+        let mut c = bin();
+        c.args(["torque", "--robot", ROBOT, "--log"])
+            .arg(&val)
+            .arg("-o")
+            .arg(&csv)
+            .args(EXACT)
+            .arg("100");
+        if with_model {
+            c.arg("--model").arg(&model);
+        }
+        let out = c.output().unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let text = std::fs::read_to_string(&csv).unwrap();
+        let mut lines = text.lines();
+        assert!(
+            lines
+                .next()
+                .unwrap()
+                .starts_with("time_s,tau_model_joint1_nm")
+        );
+        let mut worst: f64 = 0.0;
+        let mut n = 0;
+        for l in lines {
+            let v: Vec<f64> = l.split(',').map(|x| x.parse().unwrap()).collect();
+            assert_eq!(v.len(), 13);
+            for j in 0..6 {
+                worst = worst.max((v[1 + j] - v[7 + j]).abs());
+            }
+            n += 1;
+        }
+        assert_eq!(n, 1000);
+        assert!(worst < 1e-2, "model {with_model}: {worst}");
+    }
+}
+
+/// Runs `identify` with one log and returns (success, stderr); asserts no output file.
+fn identify_err(robot: &Path, log: &Path, extra: &[&str]) -> String {
+    let d = tempfile::tempdir().unwrap();
+    let model = d.path().join("out.json");
+    let out = bin()
+        .args(["identify", "--robot"])
+        .arg(robot)
+        .arg("--log")
+        .arg(log)
+        .arg("-o")
+        .arg(&model)
+        .args(extra)
+        .output()
+        .unwrap();
+    assert!(
+        !out.status.success(),
+        "expected failure: {}",
+        String::from_utf8_lossy(&out.stdout)
+    );
+    assert!(!model.exists(), "partial output left behind");
+    assert_eq!(
+        std::fs::read_dir(d.path()).unwrap().count(),
+        0,
+        "temporary files left behind"
+    );
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+#[test]
+fn cli_bad_inputs_name_file_line_and_field() {
+    let m = robot_model();
+    let d = tempfile::tempdir().unwrap();
+    let good = d.path().join("good.csv");
+    write_log(&good, &simulate(&m, 300, 6, None));
+    let text = std::fs::read_to_string(&good).unwrap();
+    let lines: Vec<&str> = text.lines().collect();
+    let with_line = |name: &str, idx: usize, new: String| {
+        let p = d.path().join(name);
+        let mut l: Vec<String> = lines.iter().map(|s| s.to_string()).collect();
+        l[idx] = new;
+        std::fs::write(&p, l.join("\n") + "\n").unwrap();
+        p
+    };
+    let robot = Path::new(ROBOT);
+
+    // NaN cell: line 5, column 3 (q2).
+    let mut cells: Vec<String> = lines[4].split(',').map(str::to_string).collect();
+    cells[2] = "NaN".into();
+    let p = with_line("nan.csv", 4, cells.join(","));
+    let e = identify_err(robot, &p, &["--layout", "torque"]);
+    assert!(
+        e.contains("nan.csv, line 5, column 3 (q2): non-finite value 'NaN'"),
+        "{e}"
+    );
+
+    // Non-monotonic time at line 10.
+    let mut cells: Vec<String> = lines[9].split(',').map(str::to_string).collect();
+    cells[0] = "0.01".into();
+    let p = with_line("mono.csv", 9, cells.join(","));
+    let e = identify_err(robot, &p, &["--layout", "torque"]);
+    assert!(
+        e.contains("mono.csv, line 10, column 1 (time): time not strictly increasing"),
+        "{e}"
+    );
+
+    // Missing column: row 7 cut short.
+    let cells: Vec<&str> = lines[6].split(',').take(15).collect();
+    let p = with_line("short.csv", 6, cells.join(","));
+    let e = identify_err(robot, &p, &["--layout", "torque"]);
+    assert!(
+        e.contains("short.csv, line 7, column 16 (tau3): missing column"),
+        "{e}"
+    );
+
+    // Malformed CSV: not a number.
+    let mut cells: Vec<String> = lines[2].split(',').map(str::to_string).collect();
+    cells[13] = "1.2.3".into();
+    let p = with_line("text.csv", 2, cells.join(","));
+    let e = identify_err(robot, &p, &["--layout", "torque"]);
+    assert!(
+        e.contains("text.csv, line 3, column 14 (tau1): not a number: '1.2.3'"),
+        "{e}"
+    );
+
+    // Malformed CSV: invalid UTF-8.
+    let p = d.path().join("bin.csv");
+    let mut bytes = text.as_bytes().to_vec();
+    bytes.splice(0..0, [0xff, 0xfe, b',', b'\n']);
+    std::fs::write(&p, bytes).unwrap();
+    let e = identify_err(robot, &p, &["--layout", "torque"]);
+    assert!(e.contains("bin.csv") && e.contains("line 1"), "{e}");
+
+    // A named column that does not exist.
+    let e = identify_err(
+        robot,
+        &good,
+        &["--layout", "torque", "--header", "yes", "--time-col", "t"],
+    );
+    assert!(
+        e.contains("good.csv, line 1, column 't' (time): missing column"),
+        "{e}"
+    );
+
+    // Too few samples.
+    let p = d.path().join("few.csv");
+    std::fs::write(&p, lines[..8].join("\n") + "\n").unwrap();
+    let e = identify_err(robot, &p, &["--layout", "torque"]);
+    assert!(e.contains("few.csv, line 8, time: too few samples"), "{e}");
+
+    // Malformed robot files: URDF and TOML.
+    let urdf = d.path().join("bad.urdf");
+    std::fs::write(&urdf, "<robot name=\"r\">\n  <link name=\"a\">\n</robot>\n").unwrap();
+    let e = identify_err(&urdf, &good, &["--layout", "torque"]);
+    assert!(e.contains("bad.urdf"), "{e}");
+    let toml = d.path().join("bad.toml");
+    let src =
+        std::fs::read_to_string(ROBOT)
+            .unwrap()
+            .replacen("mass = 13.051", "mass = \"heavy\"", 1);
+    std::fs::write(&toml, &src).unwrap();
+    let mass_line = src.lines().position(|l| l.contains("\"heavy\"")).unwrap() + 1;
+    let e = identify_err(&toml, &good, &["--layout", "torque"]);
+    assert!(
+        e.contains(&format!("bad.toml:{mass_line}")) && e.contains("heavy"),
+        "{e}"
+    );
+
+    // Unidentifiable parameters: a log where joint 6 never moves.
+    let mut s = simulate(&m, 600, 7, None);
+    for k in 0..s.len() {
+        s.q_rad[5][k] = 0.2;
+        s.qd_rad_s[5][k] = 0.0;
+        s.qdd_rad_s2[5][k] = 0.0;
+    }
+    let p = d.path().join("still6.csv");
+    write_log(&p, &s);
+    let e = identify_err(
+        robot,
+        &p,
+        &[
+            "--layout",
+            "torque",
+            "--use-logged-qd",
+            "--qdd-cols",
+            "20,21,22,23,24,25",
+        ],
+    );
+    assert!(
+        e.contains("unidentifiable") || e.contains("rank deficient"),
+        "{e}"
+    );
+    assert!(e.contains("fv6") && e.contains("fc6"), "{e}");
+}

@@ -1,0 +1,119 @@
+//! Real data: identify the UR10e from five Fourier runs of `ur10e/identification`,
+//! predict five held-out runs and the five static poses of `ur10e/validation`.
+//!
+//! Data: `$DATASETS_DIR/ur10e` (default `<workspace>/../shared/datasets/ur10e`). Where
+//! it is absent the test prints a skip line and passes.
+
+use model_export::model_file::ModelFile;
+use std::path::PathBuf;
+use std::process::Command;
+
+fn datasets_dir() -> Option<PathBuf> {
+    let dir = match std::env::var_os("DATASETS_DIR") {
+        Some(d) => PathBuf::from(d),
+        None => PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/datasets"),
+    };
+    dir.join("ur10e/ur10e.urdf").exists().then_some(dir)
+}
+
+/// Identification runs (no payload) and held-out runs (no payload).
+const IDENTIFY: [&str; 5] = [
+    "ur-20_02_12-50sec_12harm.csv",
+    "ur-20_02_12-40sec_12harm.csv",
+    "ur-20_02_19_14harm50sec.csv",
+    "ur-20_02_06-20sec_10harm.csv",
+    "ur-20_02_06-20sec_5harm.csv",
+];
+const HELD_OUT: [&str; 5] = [
+    "ur-20_02_19_15harm50sec.csv",
+    "ur-20_02_10-30sec_12harm.csv",
+    "ur-20_02_05-20sec_12harm.csv",
+    "ur-20_02_05-20sec_8harm.csv",
+    "ur-20_02_10-20sec_7harm.csv",
+];
+
+#[test]
+fn ur10e_identification_predicts_held_out_runs() {
+    let Some(data) = datasets_dir() else {
+        println!(
+            "skipped: UR10e data not found (set DATASETS_DIR or provide ../shared/datasets/ur10e)"
+        );
+        return;
+    };
+    let ur = data.join("ur10e");
+    let out_dir = tempfile::tempdir().unwrap();
+    let model = out_dir.path().join("ur10e-model.json");
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_model-export"));
+    cmd.arg("identify")
+        .arg("--robot")
+        .arg(ur.join("ur10e.urdf"));
+    for f in IDENTIFY {
+        cmd.arg("--log").arg(ur.join("identification").join(f));
+    }
+    for f in HELD_OUT {
+        cmd.arg("--validate").arg(ur.join("identification").join(f));
+    }
+    for p in 1..=5 {
+        cmd.arg("--validate")
+            .arg(ur.join(format!("validation/ur-20_01_17-p{p}.csv")));
+    }
+    cmd.args(["--coulomb-smoothing-rad-s", "0.02", "-o"])
+        .arg(&model);
+    let out = cmd.output().unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    println!("{stdout}");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+
+    let file = ModelFile::read(&model).unwrap();
+    assert_eq!(
+        file.base_parameters.len(),
+        48,
+        "36 rigid-body + 12 friction base parameters"
+    );
+    assert_eq!(file.identification_logs.len(), 5);
+    assert_eq!(file.validation_logs.len(), 10);
+    assert!(
+        file.identification_logs
+            .iter()
+            .all(|l| l.sha256.len() == 64)
+    );
+    let get = |name: &str| file.errors.iter().find(|e| e.data == name).unwrap();
+    let fit = get("identification: all");
+    // Held-out dynamic runs: errors stay close to the fit's (no over-fitting), and far
+    // below the torque scale (normalised RMS).
+    for f in HELD_OUT {
+        let e = file.errors.iter().find(|e| e.data.ends_with(f)).unwrap();
+        for j in 0..6 {
+            assert!(
+                e.rms_nm[j] < 2.0 * fit.rms_nm[j],
+                "{f} joint {}: {} vs fit {}",
+                j + 1,
+                e.rms_nm[j],
+                fit.rms_nm[j]
+            );
+        }
+        assert!(
+            e.nrms_pct[1] < 10.0 && e.nrms_pct[2] < 15.0,
+            "{f}: {:?}",
+            e.nrms_pct
+        );
+    }
+    // Gravity-loaded joints 2 and 3 at the static poses: a few N·m of torques of
+    // tens of N·m.
+    for p in 1..=5 {
+        let e = file
+            .errors
+            .iter()
+            .find(|e| e.data.ends_with(&format!("p{p}.csv")))
+            .unwrap();
+        assert!(
+            e.rms_nm[1] < 8.0 && e.rms_nm[2] < 4.0,
+            "p{p}: {:?}",
+            e.rms_nm
+        );
+    }
+}
