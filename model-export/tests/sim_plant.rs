@@ -187,9 +187,9 @@ fn simulated_log_reads_like_a_real_robot_log() {
     assert_eq!(raw.time_s.len(), log.rows.len());
     let tau = raw.torque_nm.unwrap();
     let k = 437;
-    for j in 0..6 {
-        assert_eq!(raw.q_rad[j][k], log.rows[k][log.column("q", j).unwrap()]);
+    for (j, (q, t)) in raw.q_rad.iter().zip(&tau).enumerate() {
+        assert_eq!(q[k], log.rows[k][log.column("q", j).unwrap()]);
         let logged = log.rows[k][log.column("tau", j).unwrap()];
-        assert!((tau[j][k] - logged).abs() <= 1e-12 * logged.abs().max(1.0));
+        assert!((t[k] - logged).abs() <= 1e-12 * logged.abs().max(1.0));
     }
 }
