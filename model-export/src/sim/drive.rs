@@ -148,7 +148,7 @@ mod tests {
         for v in [0.01, 0.05, 0.3, -0.2] {
             let mut s = DriveState::at_rest(25.0);
             let mut f = 0.0;
-            for _ in 0..20_000 {
+            for _ in 0..60_000 {
                 f = friction_step(
                     &d,
                     &PlantEffects {
