@@ -104,11 +104,12 @@ pub struct SimulateArgs {
     #[arg(long)]
     pub trajectory: PathBuf,
     /// Robot joints (1-based, comma separated) driven by the trajectory's joints, in
-    /// order; default: 1..n. Example for the paper's wrist: 4,5,6.
+    /// order; default: the excitation file's `layout.moving`, else 1..n. Example for the
+    /// paper's wrist: 4,5,6.
     #[arg(long, value_delimiter = ',')]
     pub joints: Vec<usize>,
     /// Positions of the joints not driven [rad], one per robot joint (comma separated);
-    /// default: all zero.
+    /// default: the excitation file's `layout.fixed_rad`, else all zero.
     #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
     pub locked_rad: Vec<f64>,
     /// Periods of a Fourier trajectory to run.
@@ -190,7 +191,11 @@ pub fn run_simulate(args: &SimulateArgs) -> anyhow::Result<()> {
     let dof = robot.dof();
     let plant = load_plant(&args.plant)?;
     let traj = CommandedTrajectory::load(&args.trajectory, args.periods)?;
-    let driven = if args.joints.is_empty() {
+    let layout = super::trajectory::excitation_layout(&args.trajectory)
+        .filter(|(m, f)| m.len() == traj.joint_count() && f.len() == dof);
+    let driven = if let (true, Some((moving, _))) = (args.joints.is_empty(), &layout) {
+        moving.clone()
+    } else if args.joints.is_empty() {
         ensure!(
             traj.joint_count() <= dof,
             "{}: trajectory has {} joints, robot {dof}",
@@ -204,6 +209,8 @@ pub fn run_simulate(args: &SimulateArgs) -> anyhow::Result<()> {
     let mut cfg = config(&args.plant, dof, driven, args.seed);
     if !args.locked_rad.is_empty() {
         cfg.locked_position_rad = args.locked_rad.clone();
+    } else if let Some((_, fixed)) = layout {
+        cfg.locked_position_rad = fixed;
     }
     let log = super::simulate(&arm, &plant, &traj, &cfg)?;
     log.save(&args.output)?;

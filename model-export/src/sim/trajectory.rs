@@ -365,6 +365,23 @@ impl CommandedTrajectory {
     }
 }
 
+/// The joint layout an excitation file (`model-export excite`) records, if any:
+/// `layout.moving` (0-based robot joints, trajectory order) and `layout.fixed_rad`
+/// (position of every robot joint when not moving).
+pub fn excitation_layout(path: &Path) -> Option<(Vec<usize>, Vec<f64>)> {
+    if !path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("json"))
+    {
+        return None;
+    }
+    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(path).ok()?).ok()?;
+    let layout = v.get("layout")?;
+    let moving: Vec<usize> = serde_json::from_value(layout.get("moving")?.clone()).ok()?;
+    let fixed: Vec<f64> = serde_json::from_value(layout.get("fixed_rad")?.clone()).ok()?;
+    Some((moving, fixed))
+}
+
 fn find_fourier(v: &serde_json::Value) -> Option<FourierTrajectory> {
     if let Ok(f) = serde_json::from_value::<FourierTrajectory>(v.clone()) {
         return Some(f);
