@@ -426,7 +426,7 @@ fn check_power_balance(robot: &Robot, seed: u64) -> f64 {
                 (
                     rng.gen_range(-0.6..0.6),
                     rng.gen_range(0.5..3.0),
-                    rng.gen_range(0.0..6.28),
+                    rng.gen_range(0.0..std::f64::consts::TAU),
                 )
             })
         })

@@ -11,6 +11,10 @@
 //! The model: `tau = M(q) qdd + c(q, qd) + g(q) + fv*qd + fc*sgn(qd) + fo + Ia*qdd`
 //! `= Y(q, qd, qdd) * theta`.
 //!
+//! The functions panic when a vector's length differs from the number of modelled
+//! joints (or `theta` from the layout): a programming error, never a data error; input
+//! files are validated when the robot is loaded.
+//!
 //! API: [`regressor`] (one sample, `n_modelled x p`), [`stack_regressors`],
 //! [`rnea`], [`mass_matrix`], [`bias_forces`], [`friction_torques`],
 //! [`forward_kinematics`], [`full_joint_positions`].
@@ -19,23 +23,12 @@ use nalgebra::{DMatrix, DVector, Matrix3, SMatrix, Vector3};
 
 pub mod firmware_model;
 
-type Mat3x10 = SMatrix<f64, 3, 10>;
 type Mat10 = SMatrix<f64, 10, 10>;
 
 /// Cross-product matrix `[v]x`.
 #[inline]
 pub fn skew(v: &Vector3<f64>) -> Matrix3<f64> {
     Matrix3::new(0.0, -v.z, v.y, v.z, 0.0, -v.x, -v.y, v.x, 0.0)
-}
-
-/// `L(v)` with `I v = L(v) [Ixx, Iyy, Izz, Ixy, Ixz, Iyz]`.
-#[inline]
-fn inertia_lin(v: &Vector3<f64>) -> SMatrix<f64, 3, 6> {
-    SMatrix::<f64, 3, 6>::from_row_slice(&[
-        v.x, 0.0, 0.0, v.y, v.z, 0.0, //
-        0.0, v.y, 0.0, v.x, 0.0, v.z, //
-        0.0, 0.0, v.z, 0.0, v.x, v.y,
-    ])
 }
 
 /// Positions of all joints of the robot: modelled ones from `q`, locked ones fixed.
@@ -84,6 +77,8 @@ struct Statics {
     row: Vec<Option<usize>>,
     first_modelled: usize,
     n_modelled: usize,
+    /// Per-joint parameter kinds of the layout.
+    kinds: Vec<JointParameter>,
 }
 
 impl Statics {
@@ -122,7 +117,30 @@ impl Statics {
             row,
             first_modelled,
             n_modelled: n,
+            kinds: robot.terms.joint_parameter_kinds(),
         }
+    }
+}
+
+impl Chain {
+    fn with_capacity(n: usize) -> Chain {
+        Chain {
+            rot: Vec::with_capacity(n),
+            pos: Vec::with_capacity(n),
+            axis: Vec::with_capacity(n),
+            w: Vec::with_capacity(n),
+            wd: Vec::with_capacity(n),
+            acc: Vec::with_capacity(n),
+        }
+    }
+
+    fn clear(&mut self) {
+        self.rot.clear();
+        self.pos.clear();
+        self.axis.clear();
+        self.w.clear();
+        self.wd.clear();
+        self.acc.clear();
     }
 }
 
@@ -134,6 +152,20 @@ fn forward_pass(
     qdd: &[f64],
     gravity: &Vector3<f64>,
 ) -> Chain {
+    let mut c = Chain::with_capacity(robot.joints.len());
+    forward_pass_into(robot, st, q, qd, qdd, gravity, &mut c);
+    c
+}
+
+fn forward_pass_into(
+    robot: &Robot,
+    st: &Statics,
+    q: &[f64],
+    qd: &[f64],
+    qdd: &[f64],
+    gravity: &Vector3<f64>,
+    c: &mut Chain,
+) {
     assert_eq!(q.len(), st.n_modelled, "q must hold the modelled joints");
     assert_eq!(qd.len(), st.n_modelled, "qd must hold the modelled joints");
     assert_eq!(
@@ -141,15 +173,7 @@ fn forward_pass(
         st.n_modelled,
         "qdd must hold the modelled joints"
     );
-    let n = robot.joints.len();
-    let mut c = Chain {
-        rot: Vec::with_capacity(n),
-        pos: Vec::with_capacity(n),
-        axis: Vec::with_capacity(n),
-        w: Vec::with_capacity(n),
-        wd: Vec::with_capacity(n),
-        acc: Vec::with_capacity(n),
-    };
+    c.clear();
     let (mut w, mut wd, mut acc) = (Vector3::zeros(), Vector3::zeros(), -gravity);
     for (i, j) in robot.joints.iter().enumerate() {
         let (qi, qdi, qddi) = match (st.row[i], j.mode) {
@@ -175,14 +199,13 @@ fn forward_pass(
         c.wd.push(wd);
         c.acc.push(acc);
     }
-    c
 }
 
 /// The regressor rows for one state: `tau = Y * theta`, `n_modelled x p`.
 pub fn regressor(robot: &Robot, q: &[f64], qd: &[f64], qdd: &[f64]) -> DMatrix<f64> {
-    let st = Statics::new(robot);
-    let mut y = DMatrix::zeros(st.n_modelled, robot.parameter_count());
-    regressor_into(robot, &st, q, qd, qdd, &mut y, 0);
+    let mut ws = Workspace::new(robot);
+    let mut y = DMatrix::zeros(ws.st.n_modelled, robot.parameter_count());
+    regressor_into(robot, &mut ws, (q, qd, qdd), &mut y, 0);
     y
 }
 
@@ -191,50 +214,82 @@ pub fn regressor_row_block(robot: &Robot, q: &[f64], qd: &[f64], qdd: &[f64]) ->
     regressor(robot, q, qd, qdd)
 }
 
+/// Reusable per-robot data and buffers for evaluating many samples.
+struct Workspace {
+    st: Statics,
+    chain: Chain,
+}
+
+impl Workspace {
+    fn new(robot: &Robot) -> Workspace {
+        Workspace {
+            st: Statics::new(robot),
+            chain: Chain::with_capacity(robot.joints.len()),
+        }
+    }
+}
+
 fn regressor_into(
     robot: &Robot,
-    st: &Statics,
-    q: &[f64],
-    qd: &[f64],
-    qdd: &[f64],
+    ws: &mut Workspace,
+    (q, qd, qdd): (&[f64], &[f64], &[f64]),
     y: &mut DMatrix<f64>,
     row0: usize,
 ) {
-    let c = forward_pass(robot, st, q, qd, qdd, &robot.gravity);
+    let Workspace { st, chain: c } = ws;
+    let st = &*st;
+    forward_pass_into(robot, st, q, qd, qdd, &robot.gravity, c);
     let n = robot.joints.len();
-    for k in st.first_modelled..n {
-        let (w, wd, acc) = (&c.w[k], &c.wd[k], &c.acc[k]);
-        let mut f = Mat3x10::zeros();
-        let mut m = Mat3x10::zeros();
-        f.set_column(0, acc);
-        let kh = skew(wd) + skew(w) * skew(w);
-        f.fixed_view_mut::<3, 3>(0, 1).copy_from(&kh);
-        m.fixed_view_mut::<3, 3>(0, 1).copy_from(&(-skew(acc)));
-        let li = inertia_lin(wd) + skew(w) * inertia_lin(w);
-        m.fixed_view_mut::<3, 6>(0, 4).copy_from(&li);
-        if let Some(a) = &st.to_body[k] {
-            f *= a;
-            m *= a;
-        }
-        let col0 = PARAMETERS_PER_LINK * k;
-        let mut j = k;
-        loop {
-            if let Some(r) = st.row[j] {
-                let row = c.axis[j].transpose() * m;
-                for cc in 0..PARAMETERS_PER_LINK {
-                    y[(row0 + r, col0 + cc)] += row[cc];
+    // Y[j, link k] = u . n_k + v . f_k, where (f_k, n_k) is link k's wrench regressor
+    // (force, moment about the origin; body frame k) and (u, v) is joint j's unit twist
+    // seen in frame k: u = axis_j, v = velocity of origin k for a unit rate of joint j.
+    // With f_k = [acc | [wd]x + [w]x^2 | 0] and n_k = [0 | -[acc]x | L(wd) + [w]x L(w)]:
+    //   m: v.acc;  h: v x wd + (v x w) x w - u x acc;  I: L(wd)^T u + L(w)^T (u x w).
+    for j in st.first_modelled..n {
+        let Some(r) = st.row[j] else { continue };
+        let mut u = c.axis[j];
+        let mut v = Vector3::zeros();
+        for k in j..n {
+            if k > j {
+                let rt = c.rot[k].transpose();
+                v = rt * (v + u.cross(&c.pos[k]));
+                u = rt * u;
+            }
+            let (w, wd, acc) = (&c.w[k], &c.wd[k], &c.acc[k]);
+            let hcol = v.cross(wd) + v.cross(w).cross(w) - u.cross(acc);
+            let uw = u.cross(w);
+            let row = [
+                v.dot(acc),
+                hcol.x,
+                hcol.y,
+                hcol.z,
+                wd.x * u.x + w.x * uw.x,
+                wd.y * u.y + w.y * uw.y,
+                wd.z * u.z + w.z * uw.z,
+                wd.y * u.x + wd.x * u.y + w.y * uw.x + w.x * uw.y,
+                wd.z * u.x + wd.x * u.z + w.z * uw.x + w.x * uw.z,
+                wd.z * u.y + wd.y * u.z + w.z * uw.y + w.y * uw.z,
+            ];
+            let col0 = PARAMETERS_PER_LINK * k;
+            match &st.to_body[k] {
+                None => {
+                    for (cc, x) in row.iter().enumerate() {
+                        y[(row0 + r, col0 + cc)] = *x;
+                    }
+                }
+                Some(a) => {
+                    for cc in 0..PARAMETERS_PER_LINK {
+                        let mut acc_l = 0.0;
+                        for (rr, x) in row.iter().enumerate() {
+                            acc_l += x * a[(rr, cc)];
+                        }
+                        y[(row0 + r, col0 + cc)] = acc_l;
+                    }
                 }
             }
-            if j == st.first_modelled {
-                break;
-            }
-            let rf = c.rot[j] * f;
-            m = c.rot[j] * m + skew(&c.pos[j]) * rf;
-            f = rf;
-            j -= 1;
         }
     }
-    let layout_kinds = robot.terms.joint_parameter_kinds();
+    let layout_kinds = &st.kinds;
     let base = PARAMETERS_PER_LINK * n;
     let nk = layout_kinds.len();
     for r in 0..st.n_modelled {
@@ -256,10 +311,11 @@ where
     I: IntoIterator<Item = (&'a [f64], &'a [f64], &'a [f64])>,
 {
     let states: Vec<_> = states.into_iter().collect();
-    let st = Statics::new(robot);
-    let mut y = DMatrix::zeros(states.len() * st.n_modelled, robot.parameter_count());
-    for (s, (q, qd, qdd)) in states.iter().enumerate() {
-        regressor_into(robot, &st, q, qd, qdd, &mut y, s * st.n_modelled);
+    let mut ws = Workspace::new(robot);
+    let n_modelled = ws.st.n_modelled;
+    let mut y = DMatrix::zeros(states.len() * n_modelled, robot.parameter_count());
+    for (s, &state) in states.iter().enumerate() {
+        regressor_into(robot, &mut ws, state, &mut y, s * n_modelled);
     }
     y
 }

@@ -101,12 +101,11 @@ fn locate(text: &str, joint: Option<usize>, field: &str) -> Option<usize> {
             Some(j) => block == Some(j),
             None => in_top,
         };
-        if here {
-            if let Some(rest) = line.strip_prefix(field) {
-                if rest.trim_start().starts_with('=') {
-                    return Some(n + 1);
-                }
-            }
+        if here
+            && let Some(rest) = line.strip_prefix(field)
+            && rest.trim_start().starts_with('=')
+        {
+            return Some(n + 1);
         }
     }
     if let Some(j) = joint {
@@ -267,10 +266,10 @@ pub(super) fn parse(text: &str, file: &Path) -> Result<Robot, RobotError> {
             qdd_max_rad_s2: opt(j.qdd_max, "qdd_max", true)?,
             effort_max_nm: opt(j.effort_max, "effort_max", true)?,
         };
-        if let (Some(lo), Some(hi)) = (limits.q_min_rad, limits.q_max_rad) {
-            if lo >= hi {
-                return Err(fe("q_max", format!("q_max {hi} must exceed q_min {lo}")));
-            }
+        if let (Some(lo), Some(hi)) = (limits.q_min_rad, limits.q_max_rad)
+            && lo >= hi
+        {
+            return Err(fe("q_max", format!("q_max {hi} must exceed q_min {lo}")));
         }
         let drive = JointDrive {
             drive_gain_nm_per_a: opt(j.drive_gain_nm_per_a, "drive_gain_nm_per_a", true)?,

@@ -366,14 +366,14 @@ pub(super) fn parse(text: &str, file: &Path) -> Result<Robot, RobotError> {
                     qdd_max_rad_s2: some_pos(lim.acceleration),
                     effort_max_nm: some_pos(lim.effort),
                 };
-                if let (Some(lo), Some(hi)) = (limits.q_min_rad, limits.q_max_rad) {
-                    if lo > hi {
-                        return Err(joint_err(
-                            &j.name,
-                            "limit",
-                            format!("lower {lo} > upper {hi}"),
-                        ));
-                    }
+                if let (Some(lo), Some(hi)) = (limits.q_min_rad, limits.q_max_rad)
+                    && lo > hi
+                {
+                    return Err(joint_err(
+                        &j.name,
+                        "limit",
+                        format!("lower {lo} > upper {hi}"),
+                    ));
                 }
                 let friction = j
                     .dynamics
