@@ -55,6 +55,10 @@ pub enum Command {
     Import(ImportArgs),
     /// Design an optimised Fourier excitation trajectory (coefficients JSON, playback CSV, plot).
     Excite(Box<crate::excite::cli::ExciteArgs>),
+    /// Simulate the true plant along a commanded trajectory and write the controller's log (CSV).
+    Simulate(crate::sim::cli::SimulateArgs),
+    /// Identify rigid body + friction on simulated logs and print the per-joint uncompensated RMS table.
+    PlantReport(crate::sim::cli::PlantReportArgs),
 }
 
 /// Which columns the network reads and predicts.
@@ -373,6 +377,8 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Train(a) => train_cmd(a),
         Command::Evaluate(a) => evaluate_cmd(a),
         Command::Import(a) => import_cmd(a),
+        Command::Simulate(args) => crate::sim::cli::run_simulate(&args),
+        Command::PlantReport(args) => crate::sim::cli::run_plant_report(&args),
     }
 }
 

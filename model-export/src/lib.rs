@@ -13,3 +13,4 @@ pub mod model_file;
 pub mod nn;
 pub mod robot;
 pub mod sil;
+pub mod sim;

@@ -46,8 +46,9 @@ pub enum WeightingArg {
 /// `model-export identify`.
 #[derive(Debug, Clone, Args)]
 pub struct IdentifyArgs {
-    /// Robot description: URDF (.urdf) or DH table (.toml).
-    #[arg(long)]
+    /// Robot description: URDF (.urdf) or DH table (.toml); default: the built-in
+    /// default robot (model-export/robots/default.toml).
+    #[arg(long, default_value = crate::sim::cli::DEFAULT_ROBOT)]
     pub robot: PathBuf,
     /// Identification logs (CSV), one or more.
     #[arg(long = "log", required = true, value_name = "CSV")]
@@ -81,8 +82,9 @@ pub struct IdentifyArgs {
 /// `model-export torque`.
 #[derive(Debug, Clone, Args)]
 pub struct TorqueArgs {
-    /// Robot description: URDF (.urdf) or DH table (.toml).
-    #[arg(long)]
+    /// Robot description: URDF (.urdf) or DH table (.toml); default: the built-in
+    /// default robot (model-export/robots/default.toml).
+    #[arg(long, default_value = crate::sim::cli::DEFAULT_ROBOT)]
     pub robot: PathBuf,
     /// Identified model (JSON from `identify`); without it the robot's nominal
     /// parameters (and its friction, if any) are used.
