@@ -8,6 +8,7 @@
 #![warn(missing_docs)]
 
 pub mod bench;
+pub mod dynamics;
 pub mod golden;
 pub mod log;
 pub mod math;

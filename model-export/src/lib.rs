@@ -3,4 +3,10 @@
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
+pub mod base;
 pub mod cli;
+pub mod dynamics;
+pub mod identify;
+pub mod logs;
+pub mod model_file;
+pub mod robot;

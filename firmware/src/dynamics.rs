@@ -1,0 +1,265 @@
+//! Identified rigid-body model of the modelled joints, evaluated in f32 with a fixed
+//! operation count: `tau = RNEA(q, qd, qdd; equivalent standard parameters) +
+//! fv*qd + fc*sgn(qd) + fo + Ia*qdd`.
+//!
+//! [`RigidBodyModel<N>`] holds, per modelled joint, the fixed transform from the
+//! previous modelled body (locked joints folded in), the rotation axis, the body-frame
+//! standard parameters `[m, m*cx, m*cy, m*cz, Ixx, Iyy, Izz, Ixy, Ixz, Iyz]` (inertia
+//! about the body origin; the "equivalent standard parameters" of the identified base
+//! parameters, dependent ones zero), and the friction and rotor terms. The host builds
+//! it (`model_export::dynamics::firmware_model`) and calls this same
+//! [`RigidBodyModel::torques`] for its reports.
+//!
+//! Frames: body `i` = body `i-1` x `(origin_rotation, origin_translation)` x
+//! `Rot(axis, q_i)`; body `-1` is the base, where `gravity_m_s2` is expressed.
+use crate::math;
+
+/// One modelled joint and its (merged) link.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct JointModel {
+    /// Rotation of the fixed transform from the previous body, row-major
+    /// (`x_prev = R x_joint + p`).
+    pub origin_rotation: [[f32; 3]; 3],
+    /// Translation [m] of the fixed transform, previous body frame.
+    pub origin_translation_m: [f32; 3],
+    /// Unit rotation axis, joint frame.
+    pub axis: [f32; 3],
+    /// Body-frame standard parameters `[m, mx, my, mz, Ixx, Iyy, Izz, Ixy, Ixz, Iyz]`
+    /// [kg, kg*m, kg*m^2], inertia about the body origin.
+    pub inertial: [f32; 10],
+    /// Viscous friction [N*m*s/rad].
+    pub viscous_nm_s_rad: f32,
+    /// Coulomb friction [N*m].
+    pub coulomb_nm: f32,
+    /// Constant torque offset [N*m].
+    pub offset_nm: f32,
+    /// Reflected rotor inertia [kg*m^2].
+    pub rotor_inertia_kg_m2: f32,
+}
+
+impl JointModel {
+    /// A massless, frictionless joint about z at the previous body's origin.
+    pub const ZERO: JointModel = JointModel {
+        origin_rotation: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+        origin_translation_m: [0.0; 3],
+        axis: [0.0, 0.0, 1.0],
+        inertial: [0.0; 10],
+        viscous_nm_s_rad: 0.0,
+        coulomb_nm: 0.0,
+        offset_nm: 0.0,
+        rotor_inertia_kg_m2: 0.0,
+    };
+}
+
+/// The model of `N` modelled joints.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RigidBodyModel<const N: usize> {
+    /// Joints from base to tip.
+    pub joints: [JointModel; N],
+    /// Gravity [m/s^2] in the base frame.
+    pub gravity_m_s2: [f32; 3],
+    /// `1/eps` of the smoothed Coulomb sign `tanh(qd/eps)` [s/rad]; `0` = hard sign.
+    pub coulomb_inv_eps_s_rad: f32,
+}
+
+type V3 = [f32; 3];
+
+#[inline]
+fn cross(a: &V3, b: &V3) -> V3 {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+#[inline]
+fn add(a: &V3, b: &V3) -> V3 {
+    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
+}
+
+#[inline]
+fn scale(a: &V3, s: f32) -> V3 {
+    [a[0] * s, a[1] * s, a[2] * s]
+}
+
+#[inline]
+fn dot3(a: &V3, b: &V3) -> f32 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+/// `R v`.
+#[inline]
+fn mul(r: &[[f32; 3]; 3], v: &V3) -> V3 {
+    [dot3(&r[0], v), dot3(&r[1], v), dot3(&r[2], v)]
+}
+
+/// `R^T v`.
+#[inline]
+fn mul_t(r: &[[f32; 3]; 3], v: &V3) -> V3 {
+    [
+        r[0][0] * v[0] + r[1][0] * v[1] + r[2][0] * v[2],
+        r[0][1] * v[0] + r[1][1] * v[1] + r[2][1] * v[2],
+        r[0][2] * v[0] + r[1][2] * v[1] + r[2][2] * v[2],
+    ]
+}
+
+/// `I v` for the symmetric inertia `[Ixx, Iyy, Izz, Ixy, Ixz, Iyz]` at `p[4..10]`.
+#[inline]
+fn inertia_mul(p: &[f32; 10], v: &V3) -> V3 {
+    [
+        p[4] * v[0] + p[7] * v[1] + p[8] * v[2],
+        p[7] * v[0] + p[5] * v[1] + p[9] * v[2],
+        p[8] * v[0] + p[9] * v[1] + p[6] * v[2],
+    ]
+}
+
+/// `R0 * Rot(a, q)` (Rodrigues), row-major.
+#[inline]
+fn joint_rotation(r0: &[[f32; 3]; 3], a: &V3, q: f32) -> [[f32; 3]; 3] {
+    let (s, c) = math::sin_cos(q);
+    let t = 1.0 - c;
+    let rq = [
+        [
+            c + t * a[0] * a[0],
+            t * a[0] * a[1] - s * a[2],
+            t * a[0] * a[2] + s * a[1],
+        ],
+        [
+            t * a[1] * a[0] + s * a[2],
+            c + t * a[1] * a[1],
+            t * a[1] * a[2] - s * a[0],
+        ],
+        [
+            t * a[2] * a[0] - s * a[1],
+            t * a[2] * a[1] + s * a[0],
+            c + t * a[2] * a[2],
+        ],
+    ];
+    let mut r = [[0.0f32; 3]; 3];
+    for (i, row) in r.iter_mut().enumerate() {
+        for (j, x) in row.iter_mut().enumerate() {
+            *x = r0[i][0] * rq[0][j] + r0[i][1] * rq[1][j] + r0[i][2] * rq[2][j];
+        }
+    }
+    r
+}
+
+impl<const N: usize> RigidBodyModel<N> {
+    /// Joint torques [N*m] for positions [rad], speeds [rad/s], accelerations [rad/s^2].
+    /// Fixed operation count: two passes over `N` joints, no data-dependent loops.
+    pub fn torques(&self, q: &[f32; N], qd: &[f32; N], qdd: &[f32; N]) -> [f32; N] {
+        let mut rot = [[[0.0f32; 3]; 3]; N];
+        let mut w = [[0.0f32; 3]; N];
+        let mut wd = [[0.0f32; 3]; N];
+        let mut acc = [[0.0f32; 3]; N];
+        let mut w_p: V3 = [0.0; 3];
+        let mut wd_p: V3 = [0.0; 3];
+        let g = self.gravity_m_s2;
+        let mut acc_p: V3 = [-g[0], -g[1], -g[2]];
+        for i in 0..N {
+            let j = &self.joints[i];
+            let r = joint_rotation(&j.origin_rotation, &j.axis, q[i]);
+            let p = &j.origin_translation_m;
+            // Linear acceleration of the new origin, in the new frame.
+            let a_p = add(
+                &add(&acc_p, &cross(&wd_p, p)),
+                &cross(&w_p, &cross(&w_p, p)),
+            );
+            let w_in = mul_t(&r, &w_p);
+            let qa = scale(&j.axis, qd[i]);
+            w[i] = add(&w_in, &qa);
+            wd[i] = add(
+                &add(&mul_t(&r, &wd_p), &cross(&w_in, &qa)),
+                &scale(&j.axis, qdd[i]),
+            );
+            acc[i] = mul_t(&r, &a_p);
+            rot[i] = r;
+            w_p = w[i];
+            wd_p = wd[i];
+            acc_p = acc[i];
+        }
+        let mut tau = [0.0f32; N];
+        let mut f_c: V3 = [0.0; 3];
+        let mut n_c: V3 = [0.0; 3];
+        for k in (0..N).rev() {
+            let j = &self.joints[k];
+            let ph = &j.inertial;
+            let h = [ph[1], ph[2], ph[3]];
+            let mut f = add(
+                &add(&scale(&acc[k], ph[0]), &cross(&wd[k], &h)),
+                &cross(&w[k], &cross(&w[k], &h)),
+            );
+            let mut n = add(
+                &add(
+                    &inertia_mul(ph, &wd[k]),
+                    &cross(&w[k], &inertia_mul(ph, &w[k])),
+                ),
+                &cross(&h, &acc[k]),
+            );
+            if k + 1 < N {
+                let r = &rot[k + 1];
+                let rf = mul(r, &f_c);
+                f = add(&f, &rf);
+                n = add(
+                    &add(&n, &mul(r, &n_c)),
+                    &cross(&self.joints[k + 1].origin_translation_m, &rf),
+                );
+            }
+            let sgn = if self.coulomb_inv_eps_s_rad > 0.0 {
+                math::tanh(qd[k] * self.coulomb_inv_eps_s_rad)
+            } else if qd[k] > 0.0 {
+                1.0
+            } else if qd[k] < 0.0 {
+                -1.0
+            } else {
+                0.0
+            };
+            tau[k] = dot3(&j.axis, &n)
+                + j.viscous_nm_s_rad * qd[k]
+                + j.coulomb_nm * sgn
+                + j.offset_nm
+                + j.rotor_inertia_kg_m2 * qdd[k];
+            f_c = f;
+            n_c = n;
+        }
+        tau
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A single pendulum about z with gravity along -y: tau = m*g*l*cos(q) + (I + m l^2) qdd.
+    #[test]
+    fn pendulum_matches_closed_form() {
+        let (m, l, izz) = (2.0f32, 0.5f32, 0.1f32);
+        let mut j = JointModel::ZERO;
+        j.inertial = [
+            m,
+            m * l,
+            0.0,
+            0.0,
+            0.0,
+            izz + m * l * l,
+            izz + m * l * l,
+            0.0,
+            0.0,
+            0.0,
+        ];
+        let model = RigidBodyModel {
+            joints: [j],
+            gravity_m_s2: [0.0, -9.81, 0.0],
+            coulomb_inv_eps_s_rad: 0.0,
+        };
+        for &(q, qdd) in &[(0.0f32, 0.0f32), (0.7, 1.5), (-2.0, -3.0)] {
+            let tau = model.torques(&[q], &[0.3], &[qdd])[0];
+            let expect = m * 9.81 * l * libm::cosf(q) + (izz + m * l * l) * qdd;
+            assert!(
+                (tau - expect).abs() < 1e-4 * (1.0 + expect.abs()),
+                "{tau} {expect}"
+            );
+        }
+    }
+}
