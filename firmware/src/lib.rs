@@ -8,7 +8,9 @@
 #![warn(missing_docs)]
 
 pub mod bench;
+pub mod dsp;
 pub mod dynamics;
 pub mod golden;
 pub mod log;
 pub mod math;
+pub mod quant;
