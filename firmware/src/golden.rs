@@ -3,6 +3,7 @@
 //! Both sides generate the same inputs from integer arithmetic, run the same
 //! firmware functions on them, and `host-tests` compares the outputs bit for bit.
 
+use crate::lstm::{Lstm, LstmState};
 use crate::math;
 
 /// Number of points per scalar function.
@@ -109,6 +110,72 @@ pub fn dot_case(case: usize) -> ([f32; DOT_LEN], [f32; DOT_LEN]) {
 pub fn dot_output(case: usize) -> f32 {
     let (a, b) = dot_case(case);
     math::dot(&a, &b)
+}
+
+/// Golden LSTM: number of inputs.
+pub const LSTM_I: usize = 3;
+/// Golden LSTM: input-layer width.
+pub const LSTM_E: usize = 6;
+/// Golden LSTM: number of cells.
+pub const LSTM_H: usize = 8;
+/// Golden LSTM: number of outputs.
+pub const LSTM_O: usize = 2;
+/// Golden LSTM: consecutive streaming steps compared.
+pub const LSTM_STEPS: usize = 2_000;
+/// The golden network type.
+pub type GoldenLstm = Lstm<LSTM_I, LSTM_E, LSTM_H, LSTM_O>;
+
+/// A value in [-scale, scale) from the hash of `seed`.
+fn signed(seed: u32, scale: f32) -> f32 {
+    scale * (2.0 * unit(hash(seed)) - 1.0)
+}
+
+/// The fixed small golden network: weights drawn from the hash with PyTorch's
+/// U(±1/√H) scale (inflated so gates also saturate), non-trivial normalisation.
+pub fn lstm_network() -> GoldenLstm {
+    let mut n: u32 = 0x4c53_0000;
+    let mut next = |scale: f32| {
+        n += 1;
+        signed(n, scale)
+    };
+    let k = 1.5;
+    GoldenLstm {
+        input_mean: core::array::from_fn(|_| next(2.0)),
+        input_std: core::array::from_fn(|_| 0.5 + next(0.25)),
+        w_in: core::array::from_fn(|_| core::array::from_fn(|_| next(k))),
+        b_in: core::array::from_fn(|_| next(0.5)),
+        w_ih: core::array::from_fn(|_| core::array::from_fn(|_| core::array::from_fn(|_| next(k)))),
+        w_hh: core::array::from_fn(|_| core::array::from_fn(|_| core::array::from_fn(|_| next(k)))),
+        b_gates: core::array::from_fn(|_| core::array::from_fn(|_| next(0.7))),
+        w_out: core::array::from_fn(|_| core::array::from_fn(|_| next(k))),
+        b_out: core::array::from_fn(|_| next(0.5)),
+        output_mean: core::array::from_fn(|_| next(10.0)),
+        output_std: core::array::from_fn(|_| 1.0 + next(0.5)),
+    }
+}
+
+/// The golden input at step `t`: a slow sinusoid-like sweep plus hashed noise, so the
+/// state sees both memory-worthy structure and saturation (inputs up to about ±6).
+pub fn lstm_input(t: usize) -> [f32; LSTM_I] {
+    core::array::from_fn(|k| {
+        let phase = (t as f32) * (0.013 + 0.007 * k as f32);
+        3.0 * math::sin(phase) + signed((t * LSTM_I + k) as u32 ^ 0x00ab_0000, 3.0)
+    })
+}
+
+/// Streams the golden network from the zero state over `LSTM_STEPS` steps and calls
+/// `emit(step, outputs)` after each; the state is reset at step `LSTM_STEPS / 2` so the
+/// reset path is compared too.
+pub fn lstm_stream(mut emit: impl FnMut(usize, &[f32; LSTM_O])) {
+    let net = lstm_network();
+    let mut state = LstmState::new();
+    for t in 0..LSTM_STEPS {
+        if t == LSTM_STEPS / 2 {
+            state.reset();
+        }
+        let y = net.step(&mut state, &lstm_input(t));
+        emit(t, &y);
+    }
 }
 
 /// A 32-bit integer hash (lowbias32), the generator behind the golden inputs.

@@ -12,5 +12,6 @@ pub mod dsp;
 pub mod dynamics;
 pub mod golden;
 pub mod log;
+pub mod lstm;
 pub mod math;
 pub mod quant;

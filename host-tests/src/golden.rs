@@ -82,6 +82,17 @@ pub fn host_dot() -> Vec<Record> {
         .collect()
 }
 
+/// The host's computation of the `lstm` suite: the golden network streamed step by step.
+pub fn host_lstm() -> Vec<Record> {
+    let mut out = Vec::with_capacity(golden::LSTM_STEPS * golden::LSTM_O);
+    golden::lstm_stream(|t, y| {
+        for (k, v) in y.iter().enumerate() {
+            out.push(Record::new("lstm", t * golden::LSTM_O + k, t as u32, v.to_bits()));
+        }
+    });
+    out
+}
+
 /// Outcome of comparing one suite.
 #[derive(Debug)]
 pub struct SuiteCheck {
@@ -94,7 +105,8 @@ pub struct SuiteCheck {
 /// Compares every suite of a QEMU report with the host's computation.
 pub fn check_report(report: &str) -> Result<Vec<SuiteCheck>> {
     let suites = parse_report(report)?;
-    let host: [(&'static str, Vec<Record>); 2] = [("math", host_math()), ("dot", host_dot())];
+    let host: [(&'static str, Vec<Record>); 3] =
+        [("math", host_math()), ("dot", host_dot()), ("lstm", host_lstm())];
     let mut checks = Vec::new();
     for (name, host_records) in host {
         let Some(suite) = suites.iter().find(|s| s.name == name) else {

@@ -1,5 +1,9 @@
 //! Command-line interface: one subcommand per pipeline stage.
-use clap::{Parser, Subcommand};
+use crate::nn::data::{FeatureSpec, Sequence, Table};
+use crate::nn::{eval, io, plot, train};
+use anyhow::{Context, Result, bail};
+use clap::{Args, Parser, Subcommand};
+use std::path::PathBuf;
 
 /// `model-export`: identify a robot's dynamics, learn what the model misses, and
 /// export both as fixed-size arrays for the joint-drive firmware.
@@ -20,6 +24,247 @@ pub enum Command {
         #[arg(long, default_value_t = 9)]
         points: usize,
     },
+    /// Train the LSTM compensation network on CSV logs (each file split into contiguous
+    /// train / validation / test blocks), evaluate it by streaming the firmware step over
+    /// each test block, write the model (safetensors), the loss curve and a report.
+    Train(TrainArgs),
+    /// Evaluate a model by streaming the firmware f32 step over whole CSV logs: per output
+    /// RMS before (identified model only) and after compensation, reduction, persistence.
+    Evaluate(EvaluateArgs),
+    /// Import a model saved from PyTorch (safetensors, PyTorch names; see the README),
+    /// validate it and write it in our format; optionally check it against a reference.
+    Import(ImportArgs),
+}
+
+/// Which columns the network reads and predicts.
+#[derive(Debug, Args)]
+pub struct FeatureArgs {
+    /// Feature preset: `paper` (tau_model, tau_meas, q of each joint -> next-step tau_meas),
+    /// `feedforward` (tau_model, q, qd -> tau_meas - tau_model) or `custom` (--inputs/--targets).
+    #[arg(long, default_value = "paper")]
+    pub preset: String,
+    /// Joints for the presets (columns `q_j4`, `qd_j4`, `tau_meas_j4`, `tau_model_j4`, ...).
+    #[arg(long, value_delimiter = ',', default_value = "4,5,6")]
+    pub joints: Vec<usize>,
+    /// `custom`: input columns.
+    #[arg(long, value_delimiter = ',')]
+    pub inputs: Vec<String>,
+    /// `custom`: target columns, each `col` or `col-col` (a difference).
+    #[arg(long, value_delimiter = ',')]
+    pub targets: Vec<String>,
+    /// `custom`: steps ahead the targets are taken.
+    #[arg(long, default_value_t = 0)]
+    pub shift: usize,
+}
+
+impl FeatureArgs {
+    fn spec(&self) -> Result<FeatureSpec> {
+        match self.preset.as_str() {
+            "paper" => Ok(FeatureSpec::paper(&self.joints)),
+            "feedforward" => Ok(FeatureSpec::feedforward(&self.joints)),
+            "custom" => FeatureSpec::custom(&self.inputs, &self.targets, self.shift),
+            other => bail!("unknown preset `{other}` (paper, feedforward, custom)"),
+        }
+    }
+}
+
+/// `train` options.
+#[derive(Debug, Args)]
+pub struct TrainArgs {
+    /// CSV logs (repeat or comma-separate); windows never cross files.
+    #[arg(long, required = true, value_delimiter = ',')]
+    pub data: Vec<PathBuf>,
+    /// Features.
+    #[command(flatten)]
+    pub features: FeatureArgs,
+    /// Output model (safetensors, PyTorch names).
+    #[arg(long, default_value = "lstm.safetensors")]
+    pub out: PathBuf,
+    /// Loss curve (SVG).
+    #[arg(long, default_value = "loss.svg")]
+    pub loss_plot: PathBuf,
+    /// Report (JSON) with the per-output figures on the test blocks.
+    #[arg(long)]
+    pub report: Option<PathBuf>,
+    /// Input-layer width.
+    #[arg(long, default_value_t = 64)]
+    pub embed: usize,
+    /// LSTM cells.
+    #[arg(long, default_value_t = 64)]
+    pub hidden: usize,
+    /// Window length (steps in the loss).
+    #[arg(long, default_value_t = 100)]
+    pub window: usize,
+    /// Burn-in steps before each window (seen, not in the loss).
+    #[arg(long, default_value_t = 50)]
+    pub burn_in: usize,
+    /// Windows per batch.
+    #[arg(long, default_value_t = 50)]
+    pub batch: usize,
+    /// Learning rate (the paper: 0.05); default: chosen by validation among 0.05, 0.01, 0.003, 0.001.
+    #[arg(long)]
+    pub lr: Option<f64>,
+    /// Maximum epochs.
+    #[arg(long, default_value_t = 200)]
+    pub epochs: usize,
+    /// Early stopping patience (epochs).
+    #[arg(long, default_value_t = 20)]
+    pub patience: usize,
+    /// Gradient-norm clip (0: off).
+    #[arg(long, default_value_t = 1.0)]
+    pub clip: f64,
+    /// Validation fraction of each file.
+    #[arg(long, default_value_t = 0.15)]
+    pub val_fraction: f64,
+    /// Test fraction of each file (its end).
+    #[arg(long, default_value_t = 0.15)]
+    pub test_fraction: f64,
+    /// Random seed.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// No progress bar.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+/// `evaluate` options.
+#[derive(Debug, Args)]
+pub struct EvaluateArgs {
+    /// Model (safetensors).
+    #[arg(long)]
+    pub model: PathBuf,
+    /// CSV logs, each streamed whole from the zero state.
+    #[arg(long, required = true, value_delimiter = ',')]
+    pub data: Vec<PathBuf>,
+    /// Features (must match the model's).
+    #[command(flatten)]
+    pub features: FeatureArgs,
+    /// Report (JSON).
+    #[arg(long)]
+    pub report: Option<PathBuf>,
+}
+
+/// `import` options.
+#[derive(Debug, Args)]
+pub struct ImportArgs {
+    /// Safetensors written from PyTorch.
+    #[arg(long)]
+    pub torch: PathBuf,
+    /// Our model file to write.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Reference CSV (columns `x0..`, `y0..`: raw inputs and PyTorch's outputs per step);
+    /// the firmware step must match it to `--tolerance` relative.
+    #[arg(long)]
+    pub reference: Option<PathBuf>,
+    /// Relative tolerance for `--reference` (of the outputs' RMS).
+    #[arg(long, default_value_t = 1e-5)]
+    pub tolerance: f64,
+}
+
+fn load(paths: &[PathBuf], spec: &FeatureSpec) -> Result<Vec<Sequence>> {
+    paths.iter().map(|p| spec.sequence(&Table::read(p)?)).collect()
+}
+
+fn train_cmd(a: TrainArgs) -> Result<()> {
+    let spec = a.features.spec()?;
+    let cfg = train::TrainConfig {
+        embed: a.embed,
+        hidden: a.hidden,
+        window: a.window,
+        burn_in: a.burn_in,
+        batch: a.batch,
+        lr: a.lr,
+        epochs: a.epochs,
+        patience: a.patience,
+        clip_norm: a.clip,
+        val_fraction: a.val_fraction,
+        test_fraction: a.test_fraction,
+        seed: a.seed,
+        progress: !a.quiet,
+        ..Default::default()
+    };
+    let mut tr = Vec::new();
+    let mut va = Vec::new();
+    let mut te = Vec::new();
+    for s in load(&a.data, &spec)? {
+        let (x, y, z) = s.split(cfg.val_fraction, cfg.test_fraction)?;
+        tr.push(x);
+        va.push(y);
+        te.push(z);
+    }
+    let all_train = Sequence {
+        inputs: tr.iter().flat_map(|s| s.inputs.clone()).collect(),
+        targets: tr.iter().flat_map(|s| s.targets.clone()).collect(),
+        ..Default::default()
+    };
+    let init = train::new_model(&all_train, spec.inputs.clone(), spec.output_names(), &spec.preset, &cfg)?;
+    let (model, hist) = train::train(&init, &tr.iter().collect::<Vec<_>>(), &va.iter().collect::<Vec<_>>(), &cfg)?;
+    io::write_model(&model, &a.out)?;
+    plot::loss_curve(&hist, &a.loss_plot)?;
+    println!("learning rate {} (trials: {:?}); best epoch {} of {}", hist.lr, hist.lr_trials, hist.best_epoch + 1, hist.train.len());
+    let mut reports = Vec::new();
+    for (p, t) in a.data.iter().zip(&te) {
+        let rows = eval::evaluate(&model, t)?;
+        println!("\n{} (test block, {} steps, streamed):\n{}", p.display(), t.len(), eval::markdown(&rows));
+        reports.push(serde_json::json!({"file": p.display().to_string(), "steps": t.len(), "outputs": rows}));
+    }
+    println!("wrote {} and {}", a.out.display(), a.loss_plot.display());
+    if let Some(r) = a.report {
+        let j = serde_json::json!({"preset": spec.preset, "lr": hist.lr, "lr_trials": hist.lr_trials,
+            "epochs": hist.train.len(), "best_epoch": hist.best_epoch + 1, "train_loss": hist.train, "val_loss": hist.val, "test": reports});
+        crate::nn::write_atomic(&r, serde_json::to_string_pretty(&j)?.as_bytes())?;
+    }
+    Ok(())
+}
+
+fn evaluate_cmd(a: EvaluateArgs) -> Result<()> {
+    let spec = a.features.spec()?;
+    let model = io::read_model(&a.model)?;
+    spec.check_model(&model).with_context(|| format!("{}", a.model.display()))?;
+    let mut reports = Vec::new();
+    for (p, s) in a.data.iter().zip(load(&a.data, &spec)?) {
+        let rows = eval::evaluate(&model, &s)?;
+        println!("{} ({} steps, streamed):\n{}", p.display(), s.len(), eval::markdown(&rows));
+        reports.push(serde_json::json!({"file": p.display().to_string(), "steps": s.len(), "outputs": rows}));
+    }
+    if let Some(r) = a.report {
+        crate::nn::write_atomic(&r, serde_json::to_string_pretty(&serde_json::json!({"preset": spec.preset, "data": reports}))?.as_bytes())?;
+    }
+    Ok(())
+}
+
+/// Compares a model's streamed firmware output with a reference CSV (`x*` inputs,
+/// `y*` outputs); returns the largest error relative to the reference outputs' RMS.
+pub fn check_reference(model: &crate::nn::LstmModel, reference: &std::path::Path) -> Result<f64> {
+    let t = Table::read(reference)?;
+    let xs: Vec<&[f32]> = (0..model.dims.input).map(|k| t.column(&format!("x{k}"))).collect::<Result<_>>()?;
+    let ys: Vec<&[f32]> = (0..model.dims.output).map(|k| t.column(&format!("y{k}"))).collect::<Result<_>>()?;
+    let inputs: Vec<Vec<f32>> = (0..t.len()).map(|r| xs.iter().map(|c| c[r]).collect()).collect();
+    let out = model.stream(&inputs)?;
+    let mut worst = 0.0f64;
+    for (k, y) in ys.iter().enumerate() {
+        let rms = (y.iter().map(|v| (*v as f64).powi(2)).sum::<f64>() / y.len().max(1) as f64).sqrt().max(1e-12);
+        for (r, v) in y.iter().enumerate() {
+            worst = worst.max((out[r][k] as f64 - *v as f64).abs() / rms);
+        }
+    }
+    Ok(worst)
+}
+
+fn import_cmd(a: ImportArgs) -> Result<()> {
+    let model = io::read_model(&a.torch)?;
+    println!("{}: {:?}, preset `{}`", a.torch.display(), model.dims, model.preset);
+    if let Some(r) = &a.reference {
+        let err = check_reference(&model, r)?;
+        println!("firmware f32 step vs {}: max error {err:.3e} of the output RMS", r.display());
+        if err > a.tolerance {
+            bail!("{}: the imported model differs from the reference by {err:.3e} > {}", r.display(), a.tolerance);
+        }
+    }
+    io::write_model(&model, &a.out)?;
+    println!("wrote {}", a.out.display());
+    Ok(())
 }
 
 /// Runs one parsed command line.
@@ -39,5 +284,8 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
             }
             Ok(())
         }
+        Command::Train(a) => train_cmd(a),
+        Command::Evaluate(a) => evaluate_cmd(a),
+        Command::Import(a) => import_cmd(a),
     }
 }

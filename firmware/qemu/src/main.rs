@@ -70,6 +70,14 @@ fn main() -> ! {
     }
     out.line(format_args!("@end dot"));
 
+    out.line(format_args!("@suite lstm {}", golden::LSTM_STEPS * golden::LSTM_O));
+    golden::lstm_stream(|t, y| {
+        for (k, v) in y.iter().enumerate() {
+            out.line(format_args!("lstm {} {:08x} {:08x}", t * golden::LSTM_O + k, t as u32, v.to_bits()));
+        }
+    });
+    out.line(format_args!("@end lstm"));
+
     out.line(format_args!("@pass"));
     out.flush();
     debug::exit(debug::EXIT_SUCCESS);

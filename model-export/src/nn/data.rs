@@ -1,0 +1,278 @@
+//! Compensation datasets: CSV logs, feature presets, contiguous splits, normalisation
+//! and training windows.
+//!
+//! **Columns.** A log is a CSV file with a header row, one row per control tick, every
+//! field a number. Presets select columns by name, for joint `j`:
+//! `q_j{j}` position (rad), `qd_j{j}` velocity (rad/s), `tau_meas_j{j}` measured torque
+//! (N·m), `tau_model_j{j}` the identified model's torque (N·m).
+//! - `paper`: inputs `tau_model_j*`, `tau_meas_j*`, `q_j*` (all joints of one kind, then
+//!   the next kind) → target `tau_meas_j*` one step ahead; model-only prediction
+//!   `tau_model_j*` at that step; persistence baseline `tau_meas_j*` now.
+//! - `feedforward`: inputs `tau_model_j*`, `q_j*`, `qd_j*` → target the residual
+//!   `tau_meas_j* - tau_model_j*` at the same step; model-only prediction 0.
+//! - `custom`: `--inputs a,b,c --targets y1,y2-z2 --shift k`: a target is a column or a
+//!   difference `col-col`, taken `k` steps ahead; model-only prediction 0.
+use anyhow::{Context, Result, bail};
+use std::path::{Path, PathBuf};
+
+/// A CSV log: named columns of equal length.
+#[derive(Clone, Debug)]
+pub struct Table {
+    /// Where it was read from.
+    pub path: PathBuf,
+    /// Column names.
+    pub names: Vec<String>,
+    /// Column values.
+    pub columns: Vec<Vec<f32>>,
+}
+
+impl Table {
+    /// Reads a CSV file with a header; any unparsable or non-finite field is an error
+    /// naming the file, line and column.
+    pub fn read(path: &Path) -> Result<Table> {
+        let mut rdr = csv::ReaderBuilder::new()
+            .trim(csv::Trim::All)
+            .from_path(path)
+            .with_context(|| format!("opening {}", path.display()))?;
+        let names: Vec<String> = rdr.headers().with_context(|| format!("{}: header", path.display()))?.iter().map(String::from).collect();
+        let mut columns = vec![Vec::new(); names.len()];
+        for (n, rec) in rdr.records().enumerate() {
+            let line = n + 2;
+            let rec = rec.with_context(|| format!("{}:{line}", path.display()))?;
+            if rec.len() != names.len() {
+                bail!("{}:{line}: {} fields, the header has {}", path.display(), rec.len(), names.len());
+            }
+            for (k, field) in rec.iter().enumerate() {
+                let v: f32 = field
+                    .parse()
+                    .ok()
+                    .filter(|v: &f32| v.is_finite())
+                    .with_context(|| format!("{}:{line}: column `{}`: `{field}` is not a finite number", path.display(), names[k]))?;
+                columns[k].push(v);
+            }
+        }
+        Ok(Table { path: path.to_path_buf(), names, columns })
+    }
+
+    /// A column by name, or an error naming the file and what exists.
+    pub fn column(&self, name: &str) -> Result<&[f32]> {
+        match self.names.iter().position(|n| n == name) {
+            Some(k) => Ok(&self.columns[k]),
+            None => bail!("{}: no column `{name}` (columns: {})", self.path.display(), self.names.join(", ")),
+        }
+    }
+
+    /// Number of rows.
+    pub fn len(&self) -> usize {
+        self.columns.first().map_or(0, Vec::len)
+    }
+
+    /// True without rows.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
+/// One output of the network.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TargetSpec {
+    /// Column whose value is predicted.
+    pub column: String,
+    /// Column subtracted from it (residual targets).
+    pub minus: Option<String>,
+    /// Steps ahead (`paper`: 1).
+    pub shift: usize,
+    /// Column that is the identified model's prediction of the target (same step);
+    /// `None`: the model-only prediction is 0 (a residual).
+    pub model_only: Option<String>,
+}
+
+impl TargetSpec {
+    /// Display name (`col`, `col-minus`, with `@+k` when shifted).
+    pub fn name(&self) -> String {
+        let base = match &self.minus {
+            Some(m) => format!("{}-{m}", self.column),
+            None => self.column.clone(),
+        };
+        if self.shift > 0 { format!("{base}@+{}", self.shift) } else { base }
+    }
+}
+
+/// Which columns go in and what comes out.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FeatureSpec {
+    /// `paper`, `feedforward` or `custom`.
+    pub preset: String,
+    /// Input columns, in input order.
+    pub inputs: Vec<String>,
+    /// Targets, in output order.
+    pub targets: Vec<TargetSpec>,
+}
+
+impl FeatureSpec {
+    /// The `paper` preset for `joints` (see module docs).
+    pub fn paper(joints: &[usize]) -> Self {
+        let mut inputs = Vec::new();
+        for kind in ["tau_model", "tau_meas", "q"] {
+            inputs.extend(joints.iter().map(|j| format!("{kind}_j{j}")));
+        }
+        let targets = joints
+            .iter()
+            .map(|j| TargetSpec { column: format!("tau_meas_j{j}"), minus: None, shift: 1, model_only: Some(format!("tau_model_j{j}")) })
+            .collect();
+        FeatureSpec { preset: "paper".into(), inputs, targets }
+    }
+
+    /// The `feedforward` preset for `joints` (see module docs).
+    pub fn feedforward(joints: &[usize]) -> Self {
+        let mut inputs = Vec::new();
+        for kind in ["tau_model", "q", "qd"] {
+            inputs.extend(joints.iter().map(|j| format!("{kind}_j{j}")));
+        }
+        let targets = joints
+            .iter()
+            .map(|j| TargetSpec { column: format!("tau_meas_j{j}"), minus: Some(format!("tau_model_j{j}")), shift: 0, model_only: None })
+            .collect();
+        FeatureSpec { preset: "feedforward".into(), inputs, targets }
+    }
+
+    /// A `custom` spec: targets are `col` or `col-col`, all `shift` steps ahead.
+    pub fn custom(inputs: &[String], targets: &[String], shift: usize) -> Result<Self> {
+        if inputs.is_empty() || targets.is_empty() {
+            bail!("a custom feature spec needs at least one input and one target column");
+        }
+        let targets = targets
+            .iter()
+            .map(|t| {
+                let (column, minus) = match t.split_once('-') {
+                    Some((a, b)) => (a.to_string(), Some(b.to_string())),
+                    None => (t.clone(), None),
+                };
+                TargetSpec { column, minus, shift, model_only: None }
+            })
+            .collect();
+        Ok(FeatureSpec { preset: "custom".into(), inputs: inputs.to_vec(), targets })
+    }
+
+    /// Output names as stored in the model.
+    pub fn output_names(&self) -> Vec<String> {
+        self.targets.iter().map(TargetSpec::name).collect()
+    }
+
+    /// Checks a model was trained for this spec (same preset, inputs and outputs).
+    pub fn check_model(&self, m: &super::LstmModel) -> Result<()> {
+        if m.input_names != self.inputs || m.output_names != self.output_names() {
+            bail!(
+                "the model's features (preset `{}`: inputs [{}] -> outputs [{}]) do not match the data's \
+                 (preset `{}`: inputs [{}] -> outputs [{}])",
+                m.preset,
+                m.input_names.join(", "),
+                m.output_names.join(", "),
+                self.preset,
+                self.inputs.join(", "),
+                self.output_names().join(", ")
+            );
+        }
+        Ok(())
+    }
+
+    /// Extracts the aligned sequence from a table: row `t` holds the inputs at `t` and
+    /// the targets at `t + shift`; rows without a target are dropped.
+    pub fn sequence(&self, table: &Table) -> Result<Sequence> {
+        let max_shift = self.targets.iter().map(|t| t.shift).max().unwrap_or(0);
+        let n = table.len().saturating_sub(max_shift);
+        let ins: Vec<&[f32]> = self.inputs.iter().map(|c| table.column(c)).collect::<Result<_>>()?;
+        let mut tcols = Vec::new();
+        for t in &self.targets {
+            let a = table.column(&t.column)?;
+            let b = t.minus.as_deref().map(|m| table.column(m)).transpose()?;
+            let mo = t.model_only.as_deref().map(|m| table.column(m)).transpose()?;
+            tcols.push((t.shift, a, b, mo));
+        }
+        let mut s = Sequence::default();
+        for row in 0..n {
+            s.inputs.push(ins.iter().map(|c| c[row]).collect());
+            let mut y = Vec::new();
+            let mut mo_row = Vec::new();
+            let mut pers = Vec::new();
+            for (shift, a, b, mo) in &tcols {
+                let k = row + shift;
+                y.push(a[k] - b.map_or(0.0, |b| b[k]));
+                mo_row.push(mo.map_or(0.0, |m| m[k]));
+                pers.push(if *shift > 0 && b.is_none() { Some(a[row]) } else { None });
+            }
+            s.targets.push(y);
+            s.model_only.push(mo_row);
+            s.persistence.push(pers);
+        }
+        Ok(s)
+    }
+}
+
+/// An aligned sequence of inputs and targets (raw units).
+#[derive(Clone, Debug, Default)]
+pub struct Sequence {
+    /// Inputs per step.
+    pub inputs: Vec<Vec<f32>>,
+    /// Targets per step.
+    pub targets: Vec<Vec<f32>>,
+    /// The identified model's prediction of each target (0 for residuals).
+    pub model_only: Vec<Vec<f32>>,
+    /// Persistence prediction (the target's column now) where it is defined.
+    pub persistence: Vec<Vec<Option<f32>>>,
+}
+
+impl Sequence {
+    /// Number of steps.
+    pub fn len(&self) -> usize {
+        self.inputs.len()
+    }
+
+    /// True without steps.
+    pub fn is_empty(&self) -> bool {
+        self.inputs.is_empty()
+    }
+
+    /// Steps `range` as a new sequence.
+    pub fn slice(&self, range: std::ops::Range<usize>) -> Sequence {
+        Sequence {
+            inputs: self.inputs[range.clone()].to_vec(),
+            targets: self.targets[range.clone()].to_vec(),
+            model_only: self.model_only[range.clone()].to_vec(),
+            persistence: self.persistence[range].to_vec(),
+        }
+    }
+
+    /// Contiguous train / validation / test blocks, in time order, never shuffled.
+    pub fn split(&self, val_fraction: f64, test_fraction: f64) -> Result<(Sequence, Sequence, Sequence)> {
+        if !(0.0..1.0).contains(&val_fraction) || !(0.0..1.0).contains(&test_fraction) || val_fraction + test_fraction >= 1.0 {
+            bail!("validation ({val_fraction}) and test ({test_fraction}) fractions must be in [0, 1) and sum below 1");
+        }
+        let n = self.len();
+        let n_test = (n as f64 * test_fraction).round() as usize;
+        let n_val = (n as f64 * val_fraction).round() as usize;
+        let n_train = n - n_test - n_val;
+        Ok((self.slice(0..n_train), self.slice(n_train..n_train + n_val), self.slice(n_train + n_val..n)))
+    }
+}
+
+/// Mean and standard deviation per column of `rows` (std floored at 1e-6 of the
+/// column's magnitude scale, and at 1e-12, so constant columns stay finite).
+pub fn mean_std(rows: &[Vec<f32>]) -> (Vec<f32>, Vec<f32>) {
+    let d = rows.first().map_or(0, Vec::len);
+    let n = rows.len().max(1) as f64;
+    let mut mean = vec![0.0f64; d];
+    for r in rows {
+        for k in 0..d {
+            mean[k] += r[k] as f64 / n;
+        }
+    }
+    let mut var = vec![0.0f64; d];
+    for r in rows {
+        for k in 0..d {
+            var[k] += (r[k] as f64 - mean[k]).powi(2) / n;
+        }
+    }
+    let std = var.iter().zip(&mean).map(|(v, m)| v.sqrt().max(1e-6 * m.abs()).max(1e-12) as f32).collect();
+    (mean.into_iter().map(|m| m as f32).collect(), std)
+}

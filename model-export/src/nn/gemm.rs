@@ -1,0 +1,80 @@
+//! The one place with `unsafe` in model-export: a safe, bounds-checked wrapper around
+//! `matrixmultiply::sgemm` for row-major matrices, tested against a plain loop.
+#![allow(unsafe_code)]
+
+/// How an operand is read: as stored, or transposed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Op {
+    /// Use the stored row-major matrix.
+    N,
+    /// Use its transpose.
+    T,
+}
+
+/// `c[m×n] = alpha · op(a)[m×k] · op(b)[k×n] + beta · c`, all row-major and dense.
+/// `a` is stored `[m][k]` for `Op::N` or `[k][m]` for `Op::T`; likewise `b`.
+///
+/// Panics if a slice is shorter than its shape needs (a programming error, checked
+/// before any unsafe access).
+#[allow(clippy::too_many_arguments)]
+pub fn sgemm(m: usize, k: usize, n: usize, alpha: f32, a: &[f32], ta: Op, b: &[f32], tb: Op, beta: f32, c: &mut [f32]) {
+    assert!(a.len() >= m * k && b.len() >= k * n && c.len() >= m * n, "sgemm: operand too short");
+    if m == 0 || n == 0 {
+        return;
+    }
+    let (rsa, csa) = match ta {
+        Op::N => (k as isize, 1),
+        Op::T => (1, m as isize),
+    };
+    let (rsb, csb) = match tb {
+        Op::N => (n as isize, 1),
+        Op::T => (1, k as isize),
+    };
+    // SAFETY: the asserted lengths cover every element addressed by the strides above
+    // (max index (m-1)*rs + (k-1)*cs < m*k for either layout, likewise for b and c),
+    // and `c` is exclusively borrowed, so it does not alias `a` or `b`.
+    unsafe {
+        matrixmultiply::sgemm(
+            m,
+            k,
+            n,
+            alpha,
+            a.as_ptr(),
+            rsa,
+            csa,
+            b.as_ptr(),
+            rsb,
+            csb,
+            beta,
+            c.as_mut_ptr(),
+            n as isize,
+            1,
+        )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn matches_a_plain_loop_for_every_transpose() {
+        let (m, k, n) = (5, 7, 3);
+        let a: Vec<f32> = (0..m * k).map(|i| (i as f32 * 0.37).sin()).collect();
+        let b: Vec<f32> = (0..k * n).map(|i| (i as f32 * 0.11).cos()).collect();
+        for ta in [Op::N, Op::T] {
+            for tb in [Op::N, Op::T] {
+                let at = |i: usize, p: usize| if ta == Op::N { a[i * k + p] } else { a[p * m + i] };
+                let bt = |p: usize, j: usize| if tb == Op::N { b[p * n + j] } else { b[j * k + p] };
+                let mut c = vec![1.0f32; m * n];
+                sgemm(m, k, n, 2.0, &a, ta, &b, tb, 0.5, &mut c);
+                for i in 0..m {
+                    for j in 0..n {
+                        let want: f32 = 2.0 * (0..k).map(|p| at(i, p) * bt(p, j)).sum::<f32>() + 0.5;
+                        assert!((c[i * n + j] - want).abs() < 1e-5, "{ta:?}{tb:?} {i} {j}");
+                    }
+                }
+            }
+        }
+    }
+}

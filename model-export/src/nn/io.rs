@@ -1,0 +1,146 @@
+//! Safetensors interchange with PyTorch's own names and layouts.
+//!
+//! | name | shape | PyTorch |
+//! |---|---|---|
+//! | `input.weight` / `input.bias` | `[E, I]` / `[E]` | `nn.Linear(I, E)`, followed by `torch.tanh` |
+//! | `lstm.weight_ih_l0` / `lstm.weight_hh_l0` | `[4H, E]` / `[4H, H]` | `nn.LSTM(E, H, batch_first=True)`, gates i, f, g, o |
+//! | `lstm.bias_ih_l0` / `lstm.bias_hh_l0` | `[4H]` | same |
+//! | `output.weight` / `output.bias` | `[O, H]` / `[O]` | `nn.Linear(H, O)` |
+//! | `norm.input_mean` / `norm.input_std` | `[I]` | buffers: `x_n = (x - mean) / std` |
+//! | `norm.output_mean` / `norm.output_std` | `[O]` | buffers: `y = y_n * std + mean` |
+//!
+//! All tensors are F32 (F64 and F16/BF16 are accepted on import and converted).
+//! Metadata (optional on import): `input_names` and `output_names` (comma-separated
+//! column names), `preset`, `input_activation` (must be `tanh` if present).
+use super::model::LstmModel;
+use anyhow::{Context, Result, bail};
+use firmware::lstm::LstmDims;
+use safetensors::{Dtype, SafeTensors, tensor::TensorView};
+use std::collections::HashMap;
+use std::path::Path;
+
+/// Reads a model from a safetensors file; names the file and the tensor on any error.
+pub fn read_model(path: &Path) -> Result<LstmModel> {
+    let bytes = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
+    parse_model(&bytes).with_context(|| format!("{}", path.display()))
+}
+
+fn to_f32(name: &str, t: &TensorView) -> Result<Vec<f32>> {
+    let d = t.data();
+    Ok(match t.dtype() {
+        Dtype::F32 => d.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect(),
+        Dtype::F64 => d.chunks_exact(8).map(|b| f64::from_le_bytes(b.try_into().unwrap_or([0; 8])) as f32).collect(),
+        other => bail!("tensor `{name}`: dtype {other:?} is not supported (use F32 or F64)"),
+    })
+}
+
+/// Parses a model from safetensors bytes.
+pub fn parse_model(bytes: &[u8]) -> Result<LstmModel> {
+    let (_, meta) = SafeTensors::read_metadata(bytes).context("not a safetensors file")?;
+    let st = SafeTensors::deserialize(bytes).context("not a safetensors file")?;
+    let get = |name: &str| -> Result<(Vec<usize>, Vec<f32>)> {
+        let t = st.tensor(name).map_err(|_| anyhow::anyhow!("missing tensor `{name}`"))?;
+        Ok((t.shape().to_vec(), to_f32(name, &t)?))
+    };
+    let (s_in, w_in) = get("input.weight")?;
+    let (s_ih, w_ih) = get("lstm.weight_ih_l0")?;
+    let (s_out, w_out) = get("output.weight")?;
+    let two = |s: &[usize]| if s.len() == 2 { [s[0], s[1]] } else { [0, 0] };
+    let ([e, i], [g4, e2], [o, h]) = (two(&s_in), two(&s_ih), two(&s_out));
+    if e == 0 || i == 0 || h == 0 || o == 0 || g4 != 4 * h || e2 != e {
+        bail!(
+            "inconsistent layer shapes: input.weight {s_in:?}, lstm.weight_ih_l0 {s_ih:?}, output.weight {s_out:?} \
+             (want [E, I], [4H, E], [O, H])"
+        );
+    }
+    let dims = LstmDims { input: i, embed: e, hidden: h, output: o };
+    let shaped = |name: &str, want: &[usize]| -> Result<Vec<f32>> {
+        let (s, v) = get(name)?;
+        if s != want {
+            bail!("tensor `{name}` has shape {s:?}, expected {want:?} for {dims:?}");
+        }
+        Ok(v)
+    };
+    let m = LstmModel {
+        dims,
+        input_names: names(meta.metadata(), "input_names", "x", i)?,
+        output_names: names(meta.metadata(), "output_names", "y", o)?,
+        preset: meta.metadata().as_ref().and_then(|m| m.get("preset").cloned()).unwrap_or_else(|| "custom".into()),
+        input_mean: shaped("norm.input_mean", &[i])?,
+        input_std: shaped("norm.input_std", &[i])?,
+        w_in,
+        b_in: shaped("input.bias", &[e])?,
+        w_ih,
+        w_hh: shaped("lstm.weight_hh_l0", &[4 * h, h])?,
+        b_ih: shaped("lstm.bias_ih_l0", &[4 * h])?,
+        b_hh: shaped("lstm.bias_hh_l0", &[4 * h])?,
+        w_out,
+        b_out: shaped("output.bias", &[o])?,
+        output_mean: shaped("norm.output_mean", &[o])?,
+        output_std: shaped("norm.output_std", &[o])?,
+    };
+    if let Some(act) = meta.metadata().as_ref().and_then(|m| m.get("input_activation")) {
+        if act != "tanh" {
+            bail!("input_activation `{act}` is not supported: the firmware's input layer uses tanh");
+        }
+    }
+    m.validate()?;
+    Ok(m)
+}
+
+fn names(meta: &Option<HashMap<String, String>>, key: &str, default: &str, n: usize) -> Result<Vec<String>> {
+    match meta.as_ref().and_then(|m| m.get(key)) {
+        Some(s) => {
+            let v: Vec<String> = s.split(',').map(|x| x.trim().to_string()).collect();
+            if v.len() != n {
+                bail!("metadata `{key}` names {} columns, the tensors have {n}", v.len());
+            }
+            Ok(v)
+        }
+        None => Ok((0..n).map(|k| format!("{default}{k}")).collect()),
+    }
+}
+
+/// Serialises a model (F32, PyTorch names) to safetensors bytes.
+pub fn model_bytes(m: &LstmModel) -> Result<Vec<u8>> {
+    m.validate()?;
+    let LstmDims { input: i, embed: e, hidden: h, output: o } = m.dims;
+    let shapes: HashMap<&str, Vec<usize>> = [
+        ("input.weight", vec![e, i]),
+        ("input.bias", vec![e]),
+        ("lstm.weight_ih_l0", vec![4 * h, e]),
+        ("lstm.weight_hh_l0", vec![4 * h, h]),
+        ("lstm.bias_ih_l0", vec![4 * h]),
+        ("lstm.bias_hh_l0", vec![4 * h]),
+        ("output.weight", vec![o, h]),
+        ("output.bias", vec![o]),
+        ("norm.input_mean", vec![i]),
+        ("norm.input_std", vec![i]),
+        ("norm.output_mean", vec![o]),
+        ("norm.output_std", vec![o]),
+    ]
+    .into_iter()
+    .collect();
+    let bufs: Vec<(&str, Vec<u8>)> =
+        m.tensors().iter().map(|(n, v)| (*n, v.iter().flat_map(|x| x.to_le_bytes()).collect())).collect();
+    let views: Vec<(&str, TensorView)> = bufs
+        .iter()
+        .map(|(n, b)| Ok((*n, TensorView::new(Dtype::F32, shapes[n].clone(), b)?)))
+        .collect::<Result<_>>()?;
+    let meta: HashMap<String, String> = [
+        ("input_names".to_string(), m.input_names.join(",")),
+        ("output_names".to_string(), m.output_names.join(",")),
+        ("preset".to_string(), m.preset.clone()),
+        ("input_activation".to_string(), "tanh".to_string()),
+        ("format".to_string(), "joint-feedforward-lstm-v1".to_string()),
+    ]
+    .into_iter()
+    .collect();
+    Ok(safetensors::serialize(views, Some(meta))?)
+}
+
+/// Writes a model atomically (temp file in the same directory, then rename).
+pub fn write_model(m: &LstmModel, path: &Path) -> Result<()> {
+    let bytes = model_bytes(m)?;
+    crate::nn::write_atomic(path, &bytes)
+}

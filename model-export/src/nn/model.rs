@@ -1,0 +1,261 @@
+//! The host model: weights in PyTorch's layouts, normalisation, feature names; the
+//! candle network used for training; and streaming evaluation through the firmware step.
+use super::fused::FusedLstm;
+use anyhow::{Result, bail};
+use candle_core::{DType, Device, Tensor, Var};
+use firmware::lstm::{LstmDims, LstmView};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+/// A trained (or imported) compensation network with everything needed to run it.
+///
+/// Weight layouts are PyTorch's: `nn.Linear.weight` `[out, in]`, `nn.LSTM` `weight_ih_l0`
+/// `[4H, E]`, `weight_hh_l0` `[4H, H]`, gate order i, f, g, o; all row-major, flat.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LstmModel {
+    /// Sizes.
+    pub dims: LstmDims,
+    /// Input feature names (CSV columns), in input order.
+    pub input_names: Vec<String>,
+    /// Output names, in output order.
+    pub output_names: Vec<String>,
+    /// Feature preset the model was trained with (`paper`, `feedforward`, `custom`).
+    pub preset: String,
+    /// Mean of each input feature.
+    pub input_mean: Vec<f32>,
+    /// Standard deviation of each input feature.
+    pub input_std: Vec<f32>,
+    /// `input.weight` `[E, I]`.
+    pub w_in: Vec<f32>,
+    /// `input.bias` `[E]`.
+    pub b_in: Vec<f32>,
+    /// `lstm.weight_ih_l0` `[4H, E]`.
+    pub w_ih: Vec<f32>,
+    /// `lstm.weight_hh_l0` `[4H, H]`.
+    pub w_hh: Vec<f32>,
+    /// `lstm.bias_ih_l0` `[4H]`.
+    pub b_ih: Vec<f32>,
+    /// `lstm.bias_hh_l0` `[4H]`.
+    pub b_hh: Vec<f32>,
+    /// `output.weight` `[O, H]`.
+    pub w_out: Vec<f32>,
+    /// `output.bias` `[O]`.
+    pub b_out: Vec<f32>,
+    /// Mean of each target.
+    pub output_mean: Vec<f32>,
+    /// Standard deviation of each target.
+    pub output_std: Vec<f32>,
+}
+
+impl LstmModel {
+    /// A fresh model with PyTorch's default initialisation, drawn from a seeded ChaCha8:
+    /// every weight and bias of a layer with fan-in `n` (the LSTM: `H`) from U(±1/√n).
+    /// Normalisation starts as identity.
+    pub fn init(dims: LstmDims, seed: u64) -> Self {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let mut uniform = |n: usize, fan_in: usize| -> Vec<f32> {
+            let k = 1.0 / (fan_in.max(1) as f32).sqrt();
+            (0..n).map(|_| rng.gen_range(-k..k)).collect()
+        };
+        let LstmDims { input: i, embed: e, hidden: h, output: o } = dims;
+        LstmModel {
+            dims,
+            input_names: (0..i).map(|k| format!("x{k}")).collect(),
+            output_names: (0..o).map(|k| format!("y{k}")).collect(),
+            preset: "custom".into(),
+            input_mean: vec![0.0; i],
+            input_std: vec![1.0; i],
+            w_in: uniform(e * i, i),
+            b_in: uniform(e, i),
+            w_ih: uniform(4 * h * e, h),
+            w_hh: uniform(4 * h * h, h),
+            b_ih: uniform(4 * h, h),
+            b_hh: uniform(4 * h, h),
+            w_out: uniform(o * h, h),
+            b_out: uniform(o, h),
+            output_mean: vec![0.0; o],
+            output_std: vec![1.0; o],
+        }
+    }
+
+    /// Checks shapes, finiteness and positive standard deviations.
+    pub fn validate(&self) -> Result<()> {
+        self.streamer()?;
+        for (name, v) in self.tensors() {
+            if let Some(k) = v.iter().position(|x| !x.is_finite()) {
+                bail!("tensor `{name}`: element {k} is {} (weights must be finite)", v[k]);
+            }
+        }
+        for (name, v) in [("norm.input_std", &self.input_std), ("norm.output_std", &self.output_std)] {
+            if let Some(k) = v.iter().position(|&x| x <= 0.0) {
+                bail!("tensor `{name}`: element {k} is {} (must be > 0)", v[k]);
+            }
+        }
+        if self.input_names.len() != self.dims.input || self.output_names.len() != self.dims.output {
+            bail!("model has {} input and {} output names for {:?}", self.input_names.len(), self.output_names.len(), self.dims);
+        }
+        Ok(())
+    }
+
+    /// Every tensor with its interchange name (see [`super::io`]).
+    pub fn tensors(&self) -> [(&'static str, &Vec<f32>); 12] {
+        [
+            ("input.weight", &self.w_in),
+            ("input.bias", &self.b_in),
+            ("lstm.weight_ih_l0", &self.w_ih),
+            ("lstm.weight_hh_l0", &self.w_hh),
+            ("lstm.bias_ih_l0", &self.b_ih),
+            ("lstm.bias_hh_l0", &self.b_hh),
+            ("output.weight", &self.w_out),
+            ("output.bias", &self.b_out),
+            ("norm.input_mean", &self.input_mean),
+            ("norm.input_std", &self.input_std),
+            ("norm.output_mean", &self.output_mean),
+            ("norm.output_std", &self.output_std),
+        ]
+    }
+
+    /// A streaming runner over the FIRMWARE's f32 step.
+    pub fn streamer(&self) -> Result<Streamer<'_>> {
+        let h = self.dims.hidden;
+        let b_gates: Vec<f32> = self.b_ih.iter().zip(&self.b_hh).map(|(a, b)| a + b).collect();
+        let s = Streamer {
+            model: self,
+            b_gates,
+            h: vec![0.0; h],
+            c: vec![0.0; h],
+            embed: vec![0.0; self.dims.embed],
+            h_scratch: vec![0.0; h],
+        };
+        if let Err(e) = s.view().check() {
+            bail!("model tensor {e}");
+        }
+        Ok(s)
+    }
+
+    /// Streams the firmware step over a whole sequence from the zero state
+    /// (`inputs`: one row of `I` raw features per step); returns one output row per step.
+    pub fn stream(&self, inputs: &[Vec<f32>]) -> Result<Vec<Vec<f32>>> {
+        let mut s = self.streamer()?;
+        inputs.iter().map(|x| s.step(x)).collect()
+    }
+}
+
+/// Runs [`firmware::lstm::LstmView::step`] on a host model, keeping the state.
+#[derive(Debug)]
+pub struct Streamer<'a> {
+    model: &'a LstmModel,
+    b_gates: Vec<f32>,
+    h: Vec<f32>,
+    c: Vec<f32>,
+    embed: Vec<f32>,
+    h_scratch: Vec<f32>,
+}
+
+impl Streamer<'_> {
+    fn view(&self) -> LstmView<'_> {
+        let m = self.model;
+        LstmView {
+            dims: m.dims,
+            input_mean: &m.input_mean,
+            input_std: &m.input_std,
+            w_in: &m.w_in,
+            b_in: &m.b_in,
+            w_ih: &m.w_ih,
+            w_hh: &m.w_hh,
+            b_gates: &self.b_gates,
+            w_out: &m.w_out,
+            b_out: &m.b_out,
+            output_mean: &m.output_mean,
+            output_std: &m.output_std,
+        }
+    }
+
+    /// One firmware step.
+    pub fn step(&mut self, input: &[f32]) -> Result<Vec<f32>> {
+        let mut out = vec![0.0; self.model.dims.output];
+        let (mut h, mut c, mut e, mut hs) =
+            (std::mem::take(&mut self.h), std::mem::take(&mut self.c), std::mem::take(&mut self.embed), std::mem::take(&mut self.h_scratch));
+        let r = self.view().step(&mut h, &mut c, &mut e, &mut hs, input, &mut out);
+        (self.h, self.c, self.embed, self.h_scratch) = (h, c, e, hs);
+        r.map_err(|e| anyhow::anyhow!("firmware LSTM step: {e}"))?;
+        Ok(out)
+    }
+
+    /// Back to the zero state.
+    pub fn reset(&mut self) {
+        self.h.fill(0.0);
+        self.c.fill(0.0);
+    }
+}
+
+/// The trainable candle network (variables in PyTorch layouts).
+#[derive(Debug)]
+pub struct Net {
+    /// Sizes.
+    pub dims: LstmDims,
+    /// `input.weight`, `input.bias`, `lstm.weight_ih_l0`, `lstm.weight_hh_l0`,
+    /// `lstm.bias_ih_l0`, `lstm.bias_hh_l0`, `output.weight`, `output.bias`.
+    pub vars: Vec<Var>,
+}
+
+impl Net {
+    /// Candle variables holding a model's weights.
+    pub fn from_model(m: &LstmModel, dev: &Device) -> Result<Self> {
+        let LstmDims { input: i, embed: e, hidden: h, output: o } = m.dims;
+        let t = |v: &Vec<f32>, shape: &[usize]| -> Result<Var> { Ok(Var::from_tensor(&Tensor::from_slice(v, shape, dev)?)?) };
+        let vars = vec![
+            t(&m.w_in, &[e, i])?,
+            t(&m.b_in, &[e])?,
+            t(&m.w_ih, &[4 * h, e])?,
+            t(&m.w_hh, &[4 * h, h])?,
+            t(&m.b_ih, &[4 * h])?,
+            t(&m.b_hh, &[4 * h])?,
+            t(&m.w_out, &[o, h])?,
+            t(&m.b_out, &[o])?,
+        ];
+        Ok(Net { dims: m.dims, vars })
+    }
+
+    /// Copies the variables back into `m`'s weights.
+    pub fn store(&self, m: &mut LstmModel) -> Result<()> {
+        let get = |k: usize| -> Result<Vec<f32>> { Ok(self.vars[k].as_tensor().flatten_all()?.to_vec1::<f32>()?) };
+        m.w_in = get(0)?;
+        m.b_in = get(1)?;
+        m.w_ih = get(2)?;
+        m.w_hh = get(3)?;
+        m.b_ih = get(4)?;
+        m.b_hh = get(5)?;
+        m.w_out = get(6)?;
+        m.b_out = get(7)?;
+        Ok(())
+    }
+
+    /// Forward over a batch of NORMALISED windows `[B, T, I]` from the zero state;
+    /// returns normalised outputs `[B, T, O]`.
+    pub fn forward(&self, x: &Tensor) -> Result<Tensor> {
+        let (b, t_len, i) = x.dims3()?;
+        let LstmDims { embed: e, hidden: h, output: o, .. } = self.dims;
+        let v = |k: usize| self.vars[k].as_tensor();
+        let x2 = x.reshape((b * t_len, i))?;
+        let emb = x2.matmul(&v(0).t()?)?.broadcast_add(v(1))?.tanh()?;
+        let bias = (v(4) + v(5))?;
+        let gx = emb.matmul(&v(2).t()?)?.broadcast_add(&bias)?.reshape((b, t_len, 4 * h))?;
+        let hs = gx.apply_op2(v(3), FusedLstm)?;
+        let y = hs.reshape((b * t_len, h))?.matmul(&v(6).t()?)?.broadcast_add(v(7))?;
+        let _ = e;
+        Ok(y.reshape((b, t_len, o))?)
+    }
+}
+
+/// Normalises raw rows with the model's statistics into a `[1, T, I]` tensor.
+pub fn normalised_sequence(m: &LstmModel, rows: &[Vec<f32>], dev: &Device) -> Result<Tensor> {
+    let i = m.dims.input;
+    let mut flat = Vec::with_capacity(rows.len() * i);
+    for r in rows {
+        for k in 0..i {
+            flat.push((r[k] - m.input_mean[k]) / m.input_std[k]);
+        }
+    }
+    Ok(Tensor::from_vec(flat, (1, rows.len(), i), dev)?.to_dtype(DType::F32)?)
+}

@@ -1,0 +1,284 @@
+//! Training with candle: seeded initialisation, windows of a contiguous training block
+//! with a burn-in prefix, Adam, RMS loss, gradient clipping, early stopping.
+//!
+//! **Streaming robustness.** Each training window starts from the zero state, but a drive
+//! runs one unbroken stream. Every window is therefore preceded by `burn_in` steps that
+//! the network sees but the loss ignores, so it learns to predict from a state that has
+//! forgotten its zero start; evaluation streams the firmware step over whole sequences.
+use super::data::{Sequence, mean_std};
+use super::model::{LstmModel, Net};
+use anyhow::{Result, bail};
+use candle_core::{Device, Tensor};
+use candle_nn::{AdamW, Optimizer, ParamsAdamW};
+use firmware::lstm::LstmDims;
+use rand::seq::SliceRandom;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+/// Learning rates tried when none is given (the paper's 0.05 first); the one with the
+/// lowest validation loss after [`TrainConfig::lr_trial_epochs`] wins.
+pub const LR_CANDIDATES: [f64; 4] = [0.05, 0.01, 0.003, 0.001];
+
+/// Training options; the defaults are the paper's Table 1 where it gives one.
+#[derive(Clone, Debug)]
+pub struct TrainConfig {
+    /// Input-layer width (paper: 64 per the quantisation issue's 9 → 64 → 64 → 3).
+    pub embed: usize,
+    /// LSTM cells (paper: 64).
+    pub hidden: usize,
+    /// Steps per window that enter the loss (paper: 100).
+    pub window: usize,
+    /// Steps before each window that the network sees but the loss ignores.
+    pub burn_in: usize,
+    /// Windows per batch (paper: 50).
+    pub batch: usize,
+    /// Learning rate; `None`: chosen by validation among [`LR_CANDIDATES`].
+    pub lr: Option<f64>,
+    /// Epochs per candidate when choosing the learning rate.
+    pub lr_trial_epochs: usize,
+    /// Maximum epochs.
+    pub epochs: usize,
+    /// Early stopping: epochs without a better validation loss before stopping.
+    pub patience: usize,
+    /// Global gradient-norm clip (0: off).
+    pub clip_norm: f64,
+    /// Validation block fraction (the block after training).
+    pub val_fraction: f64,
+    /// Test block fraction (the last block).
+    pub test_fraction: f64,
+    /// Seed of the initialisation, window phases and order.
+    pub seed: u64,
+    /// Show a progress bar.
+    pub progress: bool,
+}
+
+impl Default for TrainConfig {
+    fn default() -> Self {
+        TrainConfig {
+            embed: 64,
+            hidden: 64,
+            window: 100,
+            burn_in: 50,
+            batch: 50,
+            lr: None,
+            lr_trial_epochs: 5,
+            epochs: 200,
+            patience: 20,
+            clip_norm: 1.0,
+            val_fraction: 0.15,
+            test_fraction: 0.15,
+            seed: 1,
+            progress: true,
+        }
+    }
+}
+
+/// Per-epoch losses (RMS in normalised units).
+#[derive(Clone, Debug, Default)]
+pub struct History {
+    /// Mean training loss per epoch.
+    pub train: Vec<f64>,
+    /// Validation loss per epoch.
+    pub val: Vec<f64>,
+    /// Epoch (0-based) of the kept weights.
+    pub best_epoch: usize,
+    /// Learning rate used.
+    pub lr: f64,
+    /// Validation loss of each learning-rate candidate tried, if any.
+    pub lr_trials: Vec<(f64, f64)>,
+}
+
+/// Normalised windows `[n, burn_in + window, I]` and targets `[n, window, O]`.
+struct Windows {
+    x: Vec<f32>,
+    y: Vec<f32>,
+    count: usize,
+}
+
+fn windows(m: &LstmModel, seqs: &[&Sequence], cfg: &TrainConfig, phase: usize) -> Windows {
+    let (i, o) = (m.dims.input, m.dims.output);
+    let len = cfg.burn_in + cfg.window;
+    let mut w = Windows { x: Vec::new(), y: Vec::new(), count: 0 };
+    for s in seqs {
+        let mut start = phase;
+        while start + len <= s.len() {
+            for t in start..start + len {
+                for k in 0..i {
+                    w.x.push((s.inputs[t][k] - m.input_mean[k]) / m.input_std[k]);
+                }
+            }
+            for t in start + cfg.burn_in..start + len {
+                for k in 0..o {
+                    w.y.push((s.targets[t][k] - m.output_mean[k]) / m.output_std[k]);
+                }
+            }
+            w.count += 1;
+            start += cfg.window;
+        }
+    }
+    w
+}
+
+fn batch_loss(net: &Net, w: &Windows, idx: &[usize], cfg: &TrainConfig, dev: &Device) -> Result<Tensor> {
+    let (i, o) = (net.dims.input, net.dims.output);
+    let len = cfg.burn_in + cfg.window;
+    let mut xb = Vec::with_capacity(idx.len() * len * i);
+    let mut yb = Vec::with_capacity(idx.len() * cfg.window * o);
+    for &k in idx {
+        xb.extend_from_slice(&w.x[k * len * i..][..len * i]);
+        yb.extend_from_slice(&w.y[k * cfg.window * o..][..cfg.window * o]);
+    }
+    let x = Tensor::from_vec(xb, (idx.len(), len, i), dev)?;
+    let y = Tensor::from_vec(yb, (idx.len(), cfg.window, o), dev)?;
+    let pred = net.forward(&x)?.narrow(1, cfg.burn_in, cfg.window)?;
+    Ok((pred - y)?.sqr()?.mean_all()?.sqrt()?)
+}
+
+fn eval_loss(net: &Net, w: &Windows, cfg: &TrainConfig, dev: &Device) -> Result<f64> {
+    let idx: Vec<usize> = (0..w.count).collect();
+    let mut sq = 0.0;
+    for chunk in idx.chunks(cfg.batch.max(1)) {
+        let l = batch_loss(net, w, chunk, cfg, dev)?.to_scalar::<f32>()? as f64;
+        sq += l * l * chunk.len() as f64;
+    }
+    Ok((sq / w.count.max(1) as f64).sqrt())
+}
+
+/// One epoch over shuffled windows; returns the mean training loss.
+fn epoch(net: &Net, opt: &mut AdamW, w: &Windows, cfg: &TrainConfig, rng: &mut ChaCha8Rng, dev: &Device) -> Result<f64> {
+    let mut idx: Vec<usize> = (0..w.count).collect();
+    idx.shuffle(rng);
+    let mut total = 0.0;
+    let mut n = 0;
+    for chunk in idx.chunks(cfg.batch.max(1)) {
+        let loss = batch_loss(net, w, chunk, cfg, dev)?;
+        let mut grads = loss.backward()?;
+        if cfg.clip_norm > 0.0 {
+            let mut sq = 0.0f64;
+            for v in &net.vars {
+                if let Some(g) = grads.get(v.as_tensor()) {
+                    sq += g.sqr()?.sum_all()?.to_scalar::<f32>()? as f64;
+                }
+            }
+            let norm = sq.sqrt();
+            if norm > cfg.clip_norm {
+                let scale = cfg.clip_norm / norm;
+                for v in &net.vars {
+                    if let Some(g) = grads.remove(v.as_tensor()) {
+                        grads.insert(v.as_tensor(), (g * scale)?);
+                    }
+                }
+            }
+        }
+        opt.step(&grads)?;
+        total += loss.to_scalar::<f32>()? as f64;
+        n += 1;
+    }
+    Ok(total / n.max(1) as f64)
+}
+
+/// A fresh model for `train` with normalisation from the training block only.
+pub fn new_model(train: &Sequence, input_names: Vec<String>, output_names: Vec<String>, preset: &str, cfg: &TrainConfig) -> Result<LstmModel> {
+    if train.is_empty() {
+        bail!("the training block is empty");
+    }
+    let dims = LstmDims { input: train.inputs[0].len(), embed: cfg.embed, hidden: cfg.hidden, output: train.targets[0].len() };
+    let mut m = LstmModel::init(dims, cfg.seed);
+    (m.input_mean, m.input_std) = mean_std(&train.inputs);
+    (m.output_mean, m.output_std) = mean_std(&train.targets);
+    m.input_names = input_names;
+    m.output_names = output_names;
+    m.preset = preset.to_string();
+    Ok(m)
+}
+
+fn run(init: &LstmModel, train: &[&Sequence], val: &[&Sequence], cfg: &TrainConfig, lr: f64, epochs: usize, show: bool) -> Result<(LstmModel, History)> {
+    let dev = Device::Cpu;
+    let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed ^ 0x5eed);
+    let net = Net::from_model(init, &dev)?;
+    let mut opt = AdamW::new(net.vars.clone(), ParamsAdamW { lr, weight_decay: 0.0, ..Default::default() })?;
+    let val_w = windows(init, val, cfg, 0);
+    if val_w.count == 0 {
+        bail!("the validation block is shorter than one window ({} steps)", cfg.burn_in + cfg.window);
+    }
+    let bar = if show { indicatif::ProgressBar::new(epochs as u64) } else { indicatif::ProgressBar::hidden() };
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("epoch {pos}/{len} [{bar:30}] {msg} ETA {eta}")
+            .map_err(|e| anyhow::anyhow!("{e}"))?
+            .progress_chars("=> "),
+    );
+    let mut hist = History { lr, ..Default::default() };
+    let mut best = (f64::INFINITY, init.clone());
+    for ep in 0..epochs {
+        let phase = rng.gen_range(0..cfg.window.max(1));
+        let w = windows(init, train, cfg, phase);
+        if w.count == 0 {
+            bail!("the training block is shorter than one window ({} steps)", cfg.burn_in + cfg.window);
+        }
+        let tl = epoch(&net, &mut opt, &w, cfg, &mut rng, &dev)?;
+        let vl = eval_loss(&net, &val_w, cfg, &dev)?;
+        hist.train.push(tl);
+        hist.val.push(vl);
+        if vl < best.0 {
+            best.0 = vl;
+            net.store(&mut best.1)?;
+            hist.best_epoch = ep;
+        }
+        bar.set_message(format!("train {tl:.4} val {vl:.4} best {:.4}@{}", best.0, hist.best_epoch + 1));
+        bar.inc(1);
+        if !tl.is_finite() {
+            break;
+        }
+        if ep - hist.best_epoch >= cfg.patience.max(1) {
+            break;
+        }
+    }
+    bar.finish();
+    if !best.0.is_finite() {
+        bail!("training diverged (no finite validation loss) at learning rate {lr}");
+    }
+    Ok((best.1, hist))
+}
+
+/// Trains `init` (from [`new_model`]) on the training sequences with early stopping on
+/// the validation sequences; returns the best model and the loss history.
+pub fn train(init: &LstmModel, train: &[&Sequence], val: &[&Sequence], cfg: &TrainConfig) -> Result<(LstmModel, History)> {
+    let (lr, trials) = match cfg.lr {
+        Some(lr) => (lr, Vec::new()),
+        None => {
+            let mut trials = Vec::new();
+            for lr in LR_CANDIDATES {
+                let v = match run(init, train, val, cfg, lr, cfg.lr_trial_epochs.max(1), false) {
+                    Ok((_, h)) => h.val.iter().cloned().fold(f64::INFINITY, f64::min),
+                    Err(_) => f64::INFINITY,
+                };
+                if cfg.progress {
+                    eprintln!("learning rate {lr}: validation RMS {v:.4} after {} epochs", cfg.lr_trial_epochs);
+                }
+                trials.push((lr, v));
+            }
+            let best = trials.iter().cloned().fold((LR_CANDIDATES[0], f64::INFINITY), |a, b| if b.1 < a.1 { b } else { a });
+            (best.0, trials)
+        }
+    };
+    let (m, mut h) = run(init, train, val, cfg, lr, cfg.epochs, cfg.progress)?;
+    h.lr_trials = trials;
+    Ok((m, h))
+}
+
+/// Wall-clock seconds of `epochs` training epochs (no validation) over `train`, for the
+/// benchmark: the same windows, batches, loss, clipping and optimiser as [`train`].
+pub fn time_epochs(init: &LstmModel, train: &[&Sequence], cfg: &TrainConfig, lr: f64, epochs: usize) -> Result<(usize, Vec<f64>)> {
+    let dev = Device::Cpu;
+    let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed);
+    let net = Net::from_model(init, &dev)?;
+    let mut opt = AdamW::new(net.vars.clone(), ParamsAdamW { lr, weight_decay: 0.0, ..Default::default() })?;
+    let w = windows(init, train, cfg, 0);
+    let mut times = Vec::new();
+    for _ in 0..epochs {
+        let t0 = std::time::Instant::now();
+        epoch(&net, &mut opt, &w, cfg, &mut rng, &dev)?;
+        times.push(t0.elapsed().as_secs_f64());
+    }
+    Ok((w.count, times))
+}

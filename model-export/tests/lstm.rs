@@ -1,0 +1,201 @@
+//! The LSTM compensation network: firmware step vs candle graph, PyTorch interchange,
+//! reset semantics, bad input, and learning a synthetic system with memory.
+use candle_core::Device;
+use firmware::lstm::LstmDims;
+use model_export::nn::data::{FeatureSpec, Sequence, Table};
+use model_export::nn::model::normalised_sequence;
+use model_export::nn::train::{TrainConfig, new_model, train};
+use model_export::nn::{LstmModel, Net, eval, io};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn fixtures() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures")
+}
+
+/// A paper-size model with non-trivial normalisation, and a 1000-step input sequence.
+fn paper_model() -> (LstmModel, Vec<Vec<f32>>) {
+    let mut m = LstmModel::init(LstmDims { input: 9, embed: 64, hidden: 64, output: 3 }, 7);
+    m.input_mean = (0..9).map(|k| k as f32 * 0.3 - 1.0).collect();
+    m.input_std = (0..9).map(|k| 0.5 + k as f32 * 0.2).collect();
+    m.output_mean = vec![2.0, -1.0, 0.5];
+    m.output_std = vec![3.0, 0.5, 1.5];
+    let xs = (0..1000)
+        .map(|t| (0..9).map(|k| 2.0 * (t as f32 * 0.017 * (k + 1) as f32).sin() + ((t * 7 + k * 13) % 11) as f32 * 0.1).collect())
+        .collect();
+    (m, xs)
+}
+
+fn max_rel(a: &[Vec<f32>], b: &[Vec<f32>]) -> f64 {
+    let rms = (b.iter().flatten().map(|v| (*v as f64).powi(2)).sum::<f64>() / b.iter().flatten().count() as f64).sqrt();
+    a.iter().flatten().zip(b.iter().flatten()).map(|(x, y)| (*x as f64 - *y as f64).abs()).fold(0.0, f64::max) / rms
+}
+
+#[test]
+fn firmware_stream_matches_the_candle_forward_over_1000_steps() {
+    let (m, xs) = paper_model();
+    let dev = Device::Cpu;
+    let net = Net::from_model(&m, &dev).unwrap();
+    let y = net.forward(&normalised_sequence(&m, &xs, &dev).unwrap()).unwrap();
+    let y: Vec<Vec<f32>> = y.squeeze(0).unwrap().to_vec2().unwrap();
+    let candle: Vec<Vec<f32>> = y.iter().map(|r| r.iter().enumerate().map(|(k, v)| v * m.output_std[k] + m.output_mean[k]).collect()).collect();
+    let fw = m.stream(&xs).unwrap();
+    let err = max_rel(&fw, &candle);
+    println!("firmware vs candle over 1000 steps: max error {err:.2e} of the output RMS");
+    assert!(err < 1e-5, "{err}");
+}
+
+#[test]
+fn a_reset_mid_sequence_equals_a_fresh_start() {
+    let (m, xs) = paper_model();
+    let mut s = m.streamer().unwrap();
+    for x in &xs[..400] {
+        s.step(x).unwrap();
+    }
+    s.reset();
+    let continued: Vec<Vec<f32>> = xs[400..].iter().map(|x| s.step(x).unwrap()).collect();
+    assert_eq!(continued, m.stream(&xs[400..]).unwrap());
+}
+
+#[test]
+fn a_pytorch_model_imports_and_matches_its_reference() {
+    let m = io::read_model(&fixtures().join("torch_lstm.safetensors")).unwrap();
+    assert_eq!(m.dims, LstmDims { input: 5, embed: 12, hidden: 16, output: 2 });
+    let err = model_export::cli::check_reference(&m, &fixtures().join("torch_reference.csv")).unwrap();
+    println!("firmware f32 step vs PyTorch reference: max error {err:.2e} of the output RMS");
+    assert!(err < 1e-5, "{err}");
+    // Round trip through our writer is lossless.
+    let again = io::parse_model(&io::model_bytes(&m).unwrap()).unwrap();
+    assert_eq!(again, m);
+}
+
+fn edit_fixture(edit: impl Fn(&mut LstmModel)) -> Vec<u8> {
+    let mut m = io::read_model(&fixtures().join("torch_lstm.safetensors")).unwrap();
+    edit(&mut m);
+    // Bypass validation to produce a bad file.
+    let dims = m.dims;
+    let shapes = |n: &str, v: &Vec<f32>| -> Vec<usize> {
+        match n {
+            "input.weight" => vec![dims.embed, v.len() / dims.embed],
+            "lstm.weight_ih_l0" | "lstm.weight_hh_l0" => vec![4 * dims.hidden, v.len() / (4 * dims.hidden)],
+            "output.weight" => vec![dims.output, v.len() / dims.output],
+            _ => vec![v.len()],
+        }
+    };
+    let bufs: Vec<(String, Vec<usize>, Vec<u8>)> =
+        m.tensors().iter().map(|(n, v)| (n.to_string(), shapes(n, v), v.iter().flat_map(|x| x.to_le_bytes()).collect())).collect();
+    let views: Vec<(String, safetensors::tensor::TensorView)> = bufs
+        .iter()
+        .filter(|(n, _, b)| !(b.is_empty() && n == "lstm.bias_hh_l0"))
+        .map(|(n, s, b)| (n.clone(), safetensors::tensor::TensorView::new(safetensors::Dtype::F32, s.clone(), b).unwrap()))
+        .collect();
+    safetensors::serialize(views, None).unwrap()
+}
+
+#[test]
+fn bad_safetensors_are_refused_with_the_tensor_named() {
+    let missing = edit_fixture(|m| m.b_hh.clear());
+    let e = io::parse_model(&missing).unwrap_err().to_string();
+    assert!(e.contains("missing tensor `lstm.bias_hh_l0`"), "{e}");
+    let misshaped = edit_fixture(|m| m.w_hh.truncate(4 * 16 * 15));
+    let e = format!("{:#}", io::parse_model(&misshaped).unwrap_err());
+    assert!(e.contains("lstm.weight_hh_l0") && e.contains("[64, 16]"), "{e}");
+    let nan = edit_fixture(|m| m.w_ih[17] = f32::NAN);
+    let e = format!("{:#}", io::parse_model(&nan).unwrap_err());
+    assert!(e.contains("lstm.weight_ih_l0") && e.contains("17") && e.contains("NaN"), "{e}");
+    let e = format!("{:#}", io::parse_model(b"not a safetensors file").unwrap_err());
+    assert!(e.contains("not a safetensors file"), "{e}");
+
+    // The CLI exits non-zero, names the file and writes nothing.
+    let dir = tempfile::tempdir().unwrap();
+    let bad = dir.path().join("bad.safetensors");
+    std::fs::write(&bad, &nan).unwrap();
+    let out_path = dir.path().join("out.safetensors");
+    let out = Command::new(env!("CARGO_BIN_EXE_model-export"))
+        .args(["import", "--torch"])
+        .arg(&bad)
+        .arg("--out")
+        .arg(&out_path)
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("bad.safetensors") && err.contains("NaN"), "{err}");
+    assert!(!out_path.exists());
+}
+
+/// A nonlinear system with memory: a leaky integrator of a product of inputs.
+fn synthetic(n: usize, seed: u32) -> Table {
+    let mut s = 0.0f32;
+    let mut cols = vec![Vec::new(), Vec::new(), Vec::new()];
+    for t in 0..n {
+        let tf = t as f32 + seed as f32 * 1000.0;
+        let u1 = (tf * 0.031).sin() + 0.5 * (tf * 0.0071).sin();
+        let u2 = (tf * 0.017).cos() * (1.0 + 0.5 * (tf * 0.0023).sin());
+        s = 0.95 * s + 0.3 * u1.tanh() * u2;
+        cols[0].push(u1);
+        cols[1].push(u2);
+        cols[2].push(s + 0.2 * u1 * u1);
+    }
+    Table { path: "synthetic".into(), names: vec!["u1".into(), "u2".into(), "y".into()], columns: cols }
+}
+
+#[test]
+fn training_learns_a_system_with_memory() {
+    let spec = FeatureSpec::custom(&["u1".into(), "u2".into()], &["y".into()], 0).unwrap();
+    let seq = spec.sequence(&synthetic(6000, 0)).unwrap();
+    let cfg = TrainConfig {
+        embed: 16,
+        hidden: 16,
+        window: 50,
+        burn_in: 25,
+        batch: 16,
+        lr: Some(0.003),
+        epochs: 80,
+        patience: 20,
+        val_fraction: 0.2,
+        test_fraction: 0.2,
+        progress: false,
+        ..Default::default()
+    };
+    let (tr, va, te) = seq.split(cfg.val_fraction, cfg.test_fraction).unwrap();
+    let init = new_model(&tr, spec.inputs.clone(), spec.output_names(), "custom", &cfg).unwrap();
+    let (m, h) = train(&init, &[&tr], &[&va], &cfg).unwrap();
+    let before = eval::evaluate(&init, &te).unwrap()[0].rms_after;
+    let after = eval::evaluate(&m, &te).unwrap()[0].rms_after;
+    let std = model_export::nn::data::mean_std(&te.targets).1[0] as f64;
+    println!("val loss {:.4} -> {:.4}; streamed test RMS {before:.4} -> {after:.4} (target std {std:.4})", h.val[0], h.val[h.best_epoch]);
+    assert!(after < 0.15 * std, "streamed test RMS {after} vs target std {std}");
+    assert!(h.val[h.best_epoch] < 0.3 * h.val[0]);
+    // Same seed, same model.
+    let (m2, _) = train(&init, &[&tr], &[&va], &cfg).unwrap();
+    assert_eq!(m, m2);
+}
+
+#[test]
+fn a_model_for_other_features_is_refused() {
+    let m = io::read_model(&fixtures().join("torch_lstm.safetensors")).unwrap();
+    let e = FeatureSpec::paper(&[4, 5, 6]).check_model(&m).unwrap_err().to_string();
+    assert!(e.contains("do not match") && e.contains("tau_model_j4"), "{e}");
+}
+
+#[test]
+fn presets_align_inputs_and_targets() {
+    let names = ["q_j4", "qd_j4", "tau_meas_j4", "tau_model_j4"];
+    let table = Table {
+        path: "t".into(),
+        names: names.iter().map(|s| s.to_string()).collect(),
+        columns: (0..4).map(|c| (0..5).map(|t| (10 * c + t) as f32).collect()).collect(),
+    };
+    let p = FeatureSpec::paper(&[4]).sequence(&table).unwrap();
+    assert_eq!(p.len(), 4);
+    assert_eq!(p.inputs[0], vec![30.0, 20.0, 0.0]);
+    assert_eq!(p.targets[0], vec![21.0]);
+    assert_eq!(p.model_only[0], vec![31.0]);
+    assert_eq!(p.persistence[0], vec![Some(20.0)]);
+    let f = FeatureSpec::feedforward(&[4]).sequence(&table).unwrap();
+    assert_eq!(f.len(), 5);
+    assert_eq!(f.inputs[2], vec![32.0, 2.0, 12.0]);
+    assert_eq!(f.targets[2], vec![22.0 - 32.0]);
+    let _ = Sequence::default();
+}
