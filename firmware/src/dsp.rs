@@ -56,14 +56,19 @@ pub const fn sxtb16(w: u32) -> u32 {
 ///
 /// `w[q][p]` holds the packed pair `p` (0: columns `4q, 4q+1`; 1: `4q+2, 4q+3`) of
 /// rows 0..4 (the exporter's interleaved layout), `x[q][p]` the same pair of the input
-/// vector. `Q` must be non-zero (checked at compile time). The caller guarantees the sums fit in `i32` (the
-/// exporter proves it for every row); otherwise both versions wrap identically.
+/// vector; `min(w.len(), x.len())` quads are summed. The caller guarantees the sums
+/// fit in `i32` (the exporter proves it for every row); otherwise both versions wrap
+/// identically.
 #[inline(always)]
-pub fn dot4_i16<const Q: usize>(acc: [i32; 4], w: &[[[u32; 4]; 2]; Q], x: &[[u32; 2]; Q]) -> [i32; 4] {
-    const { assert!(Q > 0, "dot4_i16: Q must be non-zero") };
+pub fn dot4_i16(acc: [i32; 4], w: &[[[u32; 4]; 2]], x: &[[u32; 2]]) -> [i32; 4] {
+    let n = w.len().min(x.len());
+    if n == 0 {
+        return acc;
+    }
     #[cfg(fw_dsp_asm)]
     {
-        asm::dot4_i16(acc, w, x)
+        // SAFETY: 0 < n <= w.len(), x.len().
+        unsafe { asm::dot4_i16(acc, w.as_ptr(), x.as_ptr(), n) }
     }
     #[cfg(not(fw_dsp_asm))]
     {
@@ -73,13 +78,17 @@ pub fn dot4_i16<const Q: usize>(acc: [i32; 4], w: &[[[u32; 4]; 2]; Q], x: &[[u32
 
 /// Four-row int8-weight x int16-activation dot products: `acc[r] + sum_q` of the four
 /// products of `w[q][r]` (four int8 weights, `SXTB16` order) with `x[q]` (two packed
-/// int16 pairs). `Q` must be non-zero (checked at compile time).
+/// int16 pairs); `min(w.len(), x.len())` quads are summed.
 #[inline(always)]
-pub fn dot4_i8<const Q: usize>(acc: [i32; 4], w: &[[u32; 4]; Q], x: &[[u32; 2]; Q]) -> [i32; 4] {
-    const { assert!(Q > 0, "dot4_i8: Q must be non-zero") };
+pub fn dot4_i8(acc: [i32; 4], w: &[[u32; 4]], x: &[[u32; 2]]) -> [i32; 4] {
+    let n = w.len().min(x.len());
+    if n == 0 {
+        return acc;
+    }
     #[cfg(fw_dsp_asm)]
     {
-        asm::dot4_i8(acc, w, x)
+        // SAFETY: 0 < n <= w.len(), x.len().
+        unsafe { asm::dot4_i8(acc, w.as_ptr(), x.as_ptr(), n) }
     }
     #[cfg(not(fw_dsp_asm))]
     {
@@ -94,11 +103,7 @@ pub mod portable {
 
     /// Portable [`super::dot4_i16`].
     #[inline(always)]
-    pub fn dot4_i16<const Q: usize>(
-        mut acc: [i32; 4],
-        w: &[[[u32; 4]; 2]; Q],
-        x: &[[u32; 2]; Q],
-    ) -> [i32; 4] {
+    pub fn dot4_i16(mut acc: [i32; 4], w: &[[[u32; 4]; 2]], x: &[[u32; 2]]) -> [i32; 4] {
         for (wq, xq) in w.iter().zip(x.iter()) {
             for (wp, &xp) in wq.iter().zip(xq.iter()) {
                 for (a, &wr) in acc.iter_mut().zip(wp.iter()) {
@@ -111,11 +116,7 @@ pub mod portable {
 
     /// Portable [`super::dot4_i8`].
     #[inline(always)]
-    pub fn dot4_i8<const Q: usize>(
-        mut acc: [i32; 4],
-        w: &[[u32; 4]; Q],
-        x: &[[u32; 2]; Q],
-    ) -> [i32; 4] {
+    pub fn dot4_i8(mut acc: [i32; 4], w: &[[u32; 4]], x: &[[u32; 2]]) -> [i32; 4] {
         for (wq, xq) in w.iter().zip(x.iter()) {
             for (a, &wr) in acc.iter_mut().zip(wq.iter()) {
                 *a = smlad(*a, sxtb16(wr), xq[0]);
@@ -134,11 +135,14 @@ mod asm {
     /// pinned: LDM fills its list in ascending register order, so the weight
     /// registers r4, r5, r8, r9 receive rows 0, 1, 2, 3.
     #[inline(always)]
-    pub fn dot4_i16<const Q: usize>(acc: [i32; 4], w: &[[[u32; 4]; 2]; Q], x: &[[u32; 2]; Q]) -> [i32; 4] {
+    ///
+    /// # Safety
+    /// `w` and `x` must be valid for `n > 0` quads.
+    pub unsafe fn dot4_i16(acc: [i32; 4], w: *const [[u32; 4]; 2], x: *const [u32; 2], n: usize) -> [i32; 4] {
         let [mut a0, mut a1, mut a2, mut a3] = acc;
-        // SAFETY: the loop reads exactly 2 * Q words of `x` and 8 * Q words of `w`
-        // (Q iterations of 2 pairs, Q > 0 by the caller's const assertion); it
-        // writes only the declared registers and the flags.
+        // SAFETY (caller: w, x valid for n quads): the loop reads exactly 2 * n words of `x` and 8 * n words of `w`
+        // (n iterations of 2 pairs, 0 < n <= both slices' lengths by the caller);
+        // it writes only the declared registers and the flags.
         unsafe {
             asm!(
                 "2:",
@@ -161,9 +165,9 @@ mod asm {
                 a2 = inout(reg) a2,
                 a3 = inout(reg) a3,
                 x = out(reg) _,
-                xp = inout(reg) x.as_ptr() => _,
-                wp = inout(reg) w.as_ptr() => _,
-                n = inout(reg) Q => _,
+                xp = inout(reg) x => _,
+                wp = inout(reg) w => _,
+                n = inout(reg) n => _,
                 out("r4") _,
                 out("r5") _,
                 out("r8") _,
@@ -176,11 +180,14 @@ mod asm {
 
     /// SXTB16 + SMLAD over 4 interleaved rows, four columns per loop iteration.
     #[inline(always)]
-    pub fn dot4_i8<const Q: usize>(acc: [i32; 4], w: &[[u32; 4]; Q], x: &[[u32; 2]; Q]) -> [i32; 4] {
+    ///
+    /// # Safety
+    /// `w` and `x` must be valid for `n > 0` quads.
+    pub unsafe fn dot4_i8(acc: [i32; 4], w: *const [u32; 4], x: *const [u32; 2], n: usize) -> [i32; 4] {
         let [mut a0, mut a1, mut a2, mut a3] = acc;
-        // SAFETY: the loop reads exactly 2 * Q words of `x` and 4 * Q words of `w`
-        // (Q iterations, Q > 0 by the caller's const assertion); it writes only the
-        // declared registers and the flags.
+        // SAFETY (caller: w, x valid for n quads): the loop reads exactly 2 * n words of `x` and 4 * n words of `w`
+        // (n iterations, 0 < n <= both slices' lengths by the caller); it writes
+        // only the declared registers and the flags.
         unsafe {
             asm!(
                 "2:",
@@ -215,9 +222,9 @@ mod asm {
                 x1 = out(reg) _,
                 w = out(reg) _,
                 t = out(reg) _,
-                xp = inout(reg) x.as_ptr() => _,
-                wp = inout(reg) w.as_ptr() => _,
-                n = inout(reg) Q => _,
+                xp = inout(reg) x => _,
+                wp = inout(reg) w => _,
+                n = inout(reg) n => _,
                 options(nostack, readonly),
             );
         }

@@ -48,6 +48,10 @@
 //!
 //! Shapes are const generics; [`QuantLstm::SHAPE`] and [`F32Lstm::SHAPE`] are
 //! compile-time assertions (a model whose sizes do not fit together does not compile).
+//! All arithmetic lives in shape-erased kernels ([`QuantView::step`],
+//! [`F32View::step`]) that the fixed-size networks call on their own arrays without
+//! copying; the exporter, whose sizes are only known at run time, runs exactly this
+//! code on its own vectors, so host and target compute the same bits.
 
 pub mod act;
 
@@ -63,44 +67,53 @@ pub const ACT_FRAC_BITS: u32 = 15;
 /// Fraction bits of the cell state (Q4.11).
 pub const CELL_FRAC_BITS: u32 = 11;
 
-/// A weight storage format of the integer kernels: how one block of 4 rows over `Q`
-/// column quads is stored and multiplied.
+/// A weight storage format of the integer kernels: how one quad of 4 columns of a
+/// 4-row block is stored and multiplied.
 pub trait WeightFormat {
-    /// One block of 4 rows over `Q` column quads.
-    type Block<const Q: usize>: Copy + core::fmt::Debug;
-    /// Name used in reports (`int16`, `int8`).
+    /// One quad of 4 columns of a 4-row block.
+    type Quad: Copy + core::fmt::Debug + PartialEq;
+    /// Name used in reports and generated files (`int16`, `int8`).
     const NAME: &'static str;
     /// Largest weight magnitude of the format.
     const MAX_WEIGHT: i32;
-    /// `acc[r] + sum_k w[r][k] * x[k]` for the 4 rows of the block.
-    fn dot4<const Q: usize>(acc: [i32; 4], w: &Self::Block<Q>, x: &[[u32; 2]; Q]) -> [i32; 4];
+    /// `acc[r] + sum_k w[r][k] * x[k]` for the 4 rows of a block.
+    fn dot4(acc: [i32; 4], w: &[Self::Quad], x: &[[u32; 2]]) -> [i32; 4];
+    /// Packs `w[r][k]` (4 rows x 4 columns, each within `MAX_WEIGHT`).
+    fn pack(w: [[i32; 4]; 4]) -> Self::Quad;
 }
 
 /// int16 weights: per quad, the two packed pairs of the 4 rows (`[pair][row]`).
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct I16Weights;
 
 impl WeightFormat for I16Weights {
-    type Block<const Q: usize> = [[[u32; 4]; 2]; Q];
+    type Quad = [[u32; 4]; 2];
     const NAME: &'static str = "int16";
     const MAX_WEIGHT: i32 = 32767;
     #[inline(always)]
-    fn dot4<const Q: usize>(acc: [i32; 4], w: &Self::Block<Q>, x: &[[u32; 2]; Q]) -> [i32; 4] {
+    fn dot4(acc: [i32; 4], w: &[Self::Quad], x: &[[u32; 2]]) -> [i32; 4] {
         dsp::dot4_i16(acc, w, x)
+    }
+    fn pack(w: [[i32; 4]; 4]) -> Self::Quad {
+        let p = |r: usize, k: usize| dsp::pack(w[r][k] as i16, w[r][k + 1] as i16);
+        [[p(0, 0), p(1, 0), p(2, 0), p(3, 0)], [p(0, 2), p(1, 2), p(2, 2), p(3, 2)]]
     }
 }
 
 /// int8 weights: per quad, one word of four int8 weights per row (`dsp::pack_i8`).
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct I8Weights;
 
 impl WeightFormat for I8Weights {
-    type Block<const Q: usize> = [[u32; 4]; Q];
+    type Quad = [u32; 4];
     const NAME: &'static str = "int8";
     const MAX_WEIGHT: i32 = 127;
     #[inline(always)]
-    fn dot4<const Q: usize>(acc: [i32; 4], w: &Self::Block<Q>, x: &[[u32; 2]; Q]) -> [i32; 4] {
+    fn dot4(acc: [i32; 4], w: &[Self::Quad], x: &[[u32; 2]]) -> [i32; 4] {
         dsp::dot4_i8(acc, w, x)
+    }
+    fn pack(w: [[i32; 4]; 4]) -> Self::Quad {
+        w.map(|row| dsp::pack_i8(row.map(|v| v as i8)))
     }
 }
 
@@ -114,6 +127,9 @@ pub struct Requant {
 }
 
 impl Requant {
+    /// A zero row (padding): maps every accumulator to 0.
+    pub const ZERO: Requant = Requant { mult: 0, shift: 1 };
+
     /// `sat16((acc * mult + 2^(shift-1)) >> shift)`.
     #[inline(always)]
     pub fn apply(self, acc: i32) -> i16 {
@@ -145,32 +161,176 @@ fn sat16(v: i32) -> i16 {
     }
 }
 
-/// A dense layer of `4 * B` rows over `4 * Q` columns in format `F`, with per-row
-/// requantisation to Q3.12 and the bias in accumulator scale.
-#[derive(Clone, Copy, Debug)]
-pub struct QuantDense<F: WeightFormat, const B: usize, const Q: usize> {
-    /// Weights, block by block.
-    pub w: [F::Block<Q>; B],
-    /// Bias per row, in the row's accumulator scale.
-    pub bias: [[i32; 4]; B],
-    /// Requantisation per row to the Q3.12 pre-activation.
-    pub requant: [[Requant; 4]; B],
+/// Rounds half away from zero and saturates to int16 (NaN gives 0).
+#[inline(always)]
+pub fn quantise_i16(v: f32) -> i16 {
+    let r = if v >= 0.0 { v + 0.5 } else { v - 0.5 };
+    r as i16
 }
 
-/// Output layer of the integer networks: `y = acc * scale + offset` per output.
-#[derive(Clone, Copy, Debug)]
-pub struct QuantOutput<F: WeightFormat, const OB: usize, const HQ: usize> {
-    /// Weights, block by block (rows beyond the outputs are zero).
-    pub w: [F::Block<HQ>; OB],
-    /// f32 scale per row (row scale x 2^-15 x output std).
-    pub scale: [[f32; 4]; OB],
-    /// f32 offset per row (bias x output std + output mean).
-    pub offset: [[f32; 4]; OB],
+/// Writes element `k` (0..4) of a packed quad.
+#[inline(always)]
+fn put(q: &mut [u32; 2], k: usize, v: i16) {
+    let word = &mut q[(k >> 1) & 1];
+    if k & 1 == 0 {
+        *word = (*word & 0xffff_0000) | (v as u16 as u32);
+    } else {
+        *word = (*word & 0x0000_ffff) | ((v as u16 as u32) << 16);
+    }
 }
 
-/// An integer LSTM network: `I` inputs (padded to `4 * IQ` columns), input layer of
-/// `E = 4 * EB` rows, `H = 4 * HQ` cells (gate matrix over `ZQ = EB + HQ` quads of
-/// `[e; h]`), `O` outputs (padded to `4 * OB` rows).
+/// Sizes of an integer network (all in elements, blocks of 4 rows, quads of 4 columns).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct QuantDims {
+    /// Inputs `I`.
+    pub input: usize,
+    /// Input quads `IQ = ceil(I / 4)`.
+    pub input_quads: usize,
+    /// Input-layer blocks `EB` (`E = 4 * EB`).
+    pub embed_blocks: usize,
+    /// Cells `H` (a multiple of 4; `HQ = H / 4`).
+    pub hidden: usize,
+    /// Outputs `O`.
+    pub output: usize,
+    /// Output blocks `OB = ceil(O / 4)`.
+    pub output_blocks: usize,
+}
+
+impl QuantDims {
+    /// Quads of `[e; h]`.
+    pub const fn z_quads(&self) -> usize {
+        self.embed_blocks + self.hidden / 4
+    }
+}
+
+/// An integer network of run-time sizes borrowing flat arrays in the kernel layout.
+#[derive(Clone, Copy, Debug)]
+pub struct QuantView<'a, F: WeightFormat> {
+    /// Sizes.
+    pub dims: QuantDims,
+    /// `[I]` input mean.
+    pub input_mean: &'a [f32],
+    /// `[I]` `2^12 / std`.
+    pub input_scale: &'a [f32],
+    /// `[EB * IQ]` input layer.
+    pub in_w: &'a [F::Quad],
+    /// `[EB]` input layer bias (accumulator scale).
+    pub in_bias: &'a [[i32; 4]],
+    /// `[EB]` input layer requantisation.
+    pub in_requant: &'a [[Requant; 4]],
+    /// `[H * ZQ]` gates.
+    pub gate_w: &'a [F::Quad],
+    /// `[H]` gate bias.
+    pub gate_bias: &'a [[i32; 4]],
+    /// `[H]` gate requantisation.
+    pub gate_requant: &'a [[Requant; 4]],
+    /// `[OB * HQ]` output layer.
+    pub out_w: &'a [F::Quad],
+    /// `[OB]` output scale.
+    pub out_scale: &'a [[f32; 4]],
+    /// `[OB]` output offset.
+    pub out_offset: &'a [[f32; 4]],
+}
+
+impl<F: WeightFormat> QuantView<'_, F> {
+    /// Whether every array has the length `dims` asks for (`None`) or the first that
+    /// does not (its name).
+    pub fn check(&self) -> Option<&'static str> {
+        let d = self.dims;
+        let zq = d.z_quads();
+        let lens: [(&'static str, usize, usize); 11] = [
+            ("input_mean", d.input, self.input_mean.len()),
+            ("input_scale", d.input, self.input_scale.len()),
+            ("in_w", d.embed_blocks * d.input_quads, self.in_w.len()),
+            ("in_bias", d.embed_blocks, self.in_bias.len()),
+            ("in_requant", d.embed_blocks, self.in_requant.len()),
+            ("gate_w", d.hidden * zq, self.gate_w.len()),
+            ("gate_bias", d.hidden, self.gate_bias.len()),
+            ("gate_requant", d.hidden, self.gate_requant.len()),
+            ("out_w", d.output_blocks * (d.hidden / 4), self.out_w.len()),
+            ("out_scale", d.output_blocks, self.out_scale.len()),
+            ("out_offset", d.output_blocks, self.out_offset.len()),
+        ];
+        let shape_ok = d.hidden % 4 == 0 && d.input_quads * 4 >= d.input && d.output_blocks * 4 >= d.output;
+        if !shape_ok {
+            return Some("dims");
+        }
+        lens.iter().find(|(_, e, a)| e != a).map(|(n, _, _)| *n)
+    }
+
+    /// The kernel: one step. `z` (`ZQ` quads) and `c` (`H`) are the state, `xq`
+    /// (`IQ` quads) and `h_new` (`HQ` quads) scratch, `input` (`I`) and `out` (`O`).
+    /// Lengths are trusted (a mismatch gives a wrong result, never a panic).
+    #[inline(always)]
+    pub fn step(
+        &self,
+        z: &mut [[u32; 2]],
+        c: &mut [i16],
+        xq: &mut [[u32; 2]],
+        h_new: &mut [[u32; 2]],
+        input: &[f32],
+        out: &mut [f32],
+    ) {
+        let d = self.dims;
+        let iq = d.input_quads.max(1);
+        let zq = d.z_quads().max(1);
+        let hq = (d.hidden / 4).max(1);
+        // Input quantisation (f32, the only float arithmetic before the output).
+        for q in xq.iter_mut() {
+            *q = [0, 0];
+        }
+        for (k, ((x, m), s)) in input.iter().zip(self.input_mean).zip(self.input_scale).enumerate() {
+            if let Some(q) = xq.get_mut(k >> 2) {
+                put(q, k & 3, quantise_i16((x - m) * s));
+            }
+        }
+        // Input layer: e = tanh(pre), Q0.15, into the e part of z.
+        let blocks = self.in_w.chunks_exact(iq).zip(self.in_bias.iter().zip(self.in_requant));
+        for ((w, (b, rq)), zq_e) in blocks.zip(z.iter_mut()) {
+            let acc = F::dot4(*b, w, xq);
+            let e = [0, 1, 2, 3].map(|r| act::tanh_q15(rq[r].apply(acc[r])));
+            *zq_e = [dsp::pack(e[0], e[1]), dsp::pack(e[2], e[3])];
+        }
+        // LSTM: one block per cell, gates i, f, g, o.
+        let z_in: &[[u32; 2]] = z;
+        let cells = self.gate_w.chunks_exact(zq).zip(self.gate_bias.iter().zip(self.gate_requant));
+        for (j, ((w, (b, rq)), cj)) in cells.zip(c.iter_mut()).enumerate() {
+            let acc = F::dot4(*b, w, z_in);
+            let i = act::sigmoid_q15(rq[0].apply(acc[0])) as i32;
+            let f = act::sigmoid_q15(rq[1].apply(acc[1])) as i32;
+            let g = act::tanh_q15(rq[2].apply(acc[2])) as i32;
+            let o = act::sigmoid_q15(rq[3].apply(acc[3])) as i32;
+            let fc = (f * (*cj as i32) + (1 << 14)) >> 15;
+            let ig = (i * g + (1 << 18)) >> 19;
+            *cj = sat16(fc + ig);
+            let tc = act::tanh_q15(sat16(2 * (*cj as i32))) as i32;
+            let h = ((o * tc + (1 << 14)) >> 15) as i16;
+            if let Some(q) = h_new.get_mut(j >> 2) {
+                put(q, j & 3, h);
+            }
+        }
+        if let Some(hz) = z.get_mut(d.embed_blocks..) {
+            for (dst, src) in hz.iter_mut().zip(h_new.iter()) {
+                *dst = *src;
+            }
+        }
+        // Output layer, f32 de-normalisation.
+        let mut rows = out.iter_mut();
+        let outs = self.out_w.chunks_exact(hq).zip(self.out_scale.iter().zip(self.out_offset));
+        for (w, (s, off)) in outs {
+            let acc = F::dot4([0; 4], w, h_new);
+            for r in 0..4 {
+                if let Some(y) = rows.next() {
+                    *y = acc[r] as f32 * s[r] + off[r];
+                }
+            }
+        }
+    }
+}
+
+/// An integer LSTM network of fixed sizes: `I` inputs (padded to `4 * IQ`
+/// columns), input layer of `E = 4 * EB` rows, `H = 4 * HQ` cells (gate matrix over
+/// `ZQ = EB + HQ` quads of `[e; h]`), `O` outputs (padded to `4 * OB` rows).
 #[derive(Clone, Copy, Debug)]
 pub struct QuantLstm<
     F: WeightFormat,
@@ -187,12 +347,24 @@ pub struct QuantLstm<
     pub input_mean: [f32; I],
     /// Input quantisation: `2^12 / std` per feature.
     pub input_scale: [f32; I],
-    /// Input layer (`E` rows over the padded inputs).
-    pub input: QuantDense<F, EB, IQ>,
-    /// LSTM gates: block `j` = rows `i_j, f_j, g_j, o_j` over `[e; h]`.
-    pub gates: QuantDense<F, H, ZQ>,
-    /// Output layer.
-    pub output: QuantOutput<F, OB, HQ>,
+    /// Input layer weights `[block][quad]`.
+    pub in_w: [[F::Quad; IQ]; EB],
+    /// Input layer bias (accumulator scale).
+    pub in_bias: [[i32; 4]; EB],
+    /// Input layer requantisation to Q3.12.
+    pub in_requant: [[Requant; 4]; EB],
+    /// Gate weights over `[e; h]`; block `j` = rows `i_j, f_j, g_j, o_j`.
+    pub gate_w: [[F::Quad; ZQ]; H],
+    /// Gate bias (accumulator scale).
+    pub gate_bias: [[i32; 4]; H],
+    /// Gate requantisation to Q3.12.
+    pub gate_requant: [[Requant; 4]; H],
+    /// Output weights (rows beyond `O` zero).
+    pub out_w: [[F::Quad; HQ]; OB],
+    /// f32 scale per output row (row scale x 2^-15 x output std).
+    pub out_scale: [[f32; 4]; OB],
+    /// f32 offset per output row (bias x output std + output mean).
+    pub out_offset: [[f32; 4]; OB],
 }
 
 /// The recurrent state of an integer network: the packed `[e; h]` vector (the `h`
@@ -223,24 +395,6 @@ impl<const ZQ: usize, const H: usize> Default for QuantState<ZQ, H> {
     }
 }
 
-/// Rounds half away from zero and saturates to int16 (NaN gives 0).
-#[inline(always)]
-pub fn quantise_i16(v: f32) -> i16 {
-    let r = if v >= 0.0 { v + 0.5 } else { v - 0.5 };
-    r as i16
-}
-
-/// Writes value `j` of a packed vector.
-#[inline(always)]
-fn put(q: &mut [u32; 2], k: usize, v: i16) {
-    let word = &mut q[(k >> 1) & 1];
-    if k & 1 == 0 {
-        *word = (*word & 0xffff_0000) | (v as u16 as u32);
-    } else {
-        *word = (*word & 0x0000_ffff) | ((v as u16 as u32) << 16);
-    }
-}
-
 impl<
     F: WeightFormat,
     const I: usize,
@@ -261,71 +415,172 @@ impl<
         assert!(ZQ == EB + HQ, "ZQ must be EB + HQ ([e; h])");
         assert!(4 * OB >= O && 4 * OB < O + 4, "OB must be ceil(O / 4)");
     };
-    /// Multiply-accumulates per step.
+    /// Sizes.
+    pub const DIMS: QuantDims =
+        QuantDims { input: I, input_quads: IQ, embed_blocks: EB, hidden: H, output: O, output_blocks: OB };
+    /// Multiply-accumulates per step (without padding).
     pub const MACS: u32 = (4 * EB * I + 4 * H * (4 * EB + H) + O * H) as u32;
+
+    /// The network as a shape-erased view of its own arrays (no copy).
+    pub fn view(&self) -> QuantView<'_, F> {
+        QuantView {
+            dims: Self::DIMS,
+            input_mean: &self.input_mean,
+            input_scale: &self.input_scale,
+            in_w: self.in_w.as_flattened(),
+            in_bias: &self.in_bias,
+            in_requant: &self.in_requant,
+            gate_w: self.gate_w.as_flattened(),
+            gate_bias: &self.gate_bias,
+            gate_requant: &self.gate_requant,
+            out_w: self.out_w.as_flattened(),
+            out_scale: &self.out_scale,
+            out_offset: &self.out_offset,
+        }
+    }
 
     /// One control tick: advances `state` by the raw (unnormalised) `input` and
     /// returns the de-normalised outputs.
     #[inline(never)]
     pub fn step(&self, state: &mut QuantState<ZQ, H>, input: &[f32; I]) -> [f32; O] {
         let () = Self::SHAPE;
-        // Input quantisation (f32, the only float arithmetic before the output).
         let mut xq = [[0u32; 2]; IQ];
-        for (k, ((x, m), s)) in input.iter().zip(&self.input_mean).zip(&self.input_scale).enumerate() {
-            if let Some(q) = xq.get_mut(k >> 2) {
-                put(q, k & 3, quantise_i16((x - m) * s));
-            }
-        }
-        // Input layer: e = tanh(pre), Q0.15, into the e part of z.
-        for ((w, (b, rq)), zq) in self.input.w.iter().zip(self.input.bias.iter().zip(&self.input.requant)).zip(state.z.iter_mut()) {
-            let acc = F::dot4(*b, w, &xq);
-            let e = [0, 1, 2, 3].map(|r| act::tanh_q15(rq[r].apply(acc[r])));
-            *zq = [dsp::pack(e[0], e[1]), dsp::pack(e[2], e[3])];
-        }
-        // LSTM: one block per cell, gates i, f, g, o.
         let mut h_new = [[0u32; 2]; HQ];
-        for (j, ((w, (b, rq)), c)) in
-            self.gates.w.iter().zip(self.gates.bias.iter().zip(&self.gates.requant)).zip(state.c.iter_mut()).enumerate()
-        {
-            let acc = F::dot4(*b, w, &state.z);
-            let i = act::sigmoid_q15(rq[0].apply(acc[0])) as i32;
-            let f = act::sigmoid_q15(rq[1].apply(acc[1])) as i32;
-            let g = act::tanh_q15(rq[2].apply(acc[2])) as i32;
-            let o = act::sigmoid_q15(rq[3].apply(acc[3])) as i32;
-            let fc = (f * (*c as i32) + (1 << 14)) >> 15;
-            let ig = (i * g + (1 << 18)) >> 19;
-            *c = sat16(fc + ig);
-            let tc = act::tanh_q15(sat16(2 * (*c as i32))) as i32;
-            let h = ((o * tc + (1 << 14)) >> 15) as i16;
-            if let Some(q) = h_new.get_mut(j >> 2) {
-                put(q, j & 3, h);
-            }
-        }
-        if let Some(hz) = state.z.get_mut(EB..) {
-            for (d, s) in hz.iter_mut().zip(&h_new) {
-                *d = *s;
-            }
-        }
-        // Output layer, f32 de-normalisation.
         let mut out = [0.0f32; O];
-        let mut rows = out.iter_mut();
-        for ((w, s), off) in self.output.w.iter().zip(&self.output.scale).zip(&self.output.offset) {
-            let acc = F::dot4([0; 4], w, &h_new);
-            for r in 0..4 {
-                if let Some(y) = rows.next() {
-                    *y = acc[r] as f32 * s[r] + off[r];
-                }
-            }
-        }
+        self.view().step(&mut state.z, &mut state.c, &mut xq, &mut h_new, input, &mut out);
         out
     }
 }
 
-/// The f32 network in the exporter's layout: `I` inputs, input layer of `E = 4 * EB`
-/// rows, `H` cells over `Z = E + H` columns (`[e; h]`), `O` outputs in `OB` blocks.
-/// Each block stores its 4 rows column-interleaved (`[k][row]`); every row sums
-/// left to right in f32, sigmoid and tanh are `math::sigmoid` / `math::tanh` (libm),
-/// the arithmetic of `crate::lstm`.
+/// Sizes of an f32 network.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct F32Dims {
+    /// Inputs `I`.
+    pub input: usize,
+    /// Input-layer blocks `EB` (`E = 4 * EB`).
+    pub embed_blocks: usize,
+    /// Cells `H`.
+    pub hidden: usize,
+    /// Outputs `O`.
+    pub output: usize,
+    /// Output blocks `OB = ceil(O / 4)`.
+    pub output_blocks: usize,
+}
+
+/// An f32 network of run-time sizes borrowing flat arrays in the kernel layout.
+#[derive(Clone, Copy, Debug)]
+pub struct F32View<'a> {
+    /// Sizes.
+    pub dims: F32Dims,
+    /// `[I]`
+    pub input_mean: &'a [f32],
+    /// `[I]`
+    pub input_inv_std: &'a [f32],
+    /// `[EB * I]` blocks of 4 rows, column-interleaved.
+    pub w_in: &'a [[f32; 4]],
+    /// `[EB]`
+    pub b_in: &'a [[f32; 4]],
+    /// `[H * Z]`, `Z = E + H`.
+    pub w_gates: &'a [[f32; 4]],
+    /// `[H]`
+    pub b_gates: &'a [[f32; 4]],
+    /// `[OB * H]`
+    pub w_out: &'a [[f32; 4]],
+    /// `[OB]`
+    pub b_out: &'a [[f32; 4]],
+    /// `[OB]`
+    pub output_std: &'a [[f32; 4]],
+    /// `[OB]`
+    pub output_mean: &'a [[f32; 4]],
+}
+
+/// Four rows at once, each summed left to right: `acc[r] + sum_k w[k][r] * x[k]`.
+#[inline(always)]
+fn dot4_f32(mut acc: [f32; 4], w: &[[f32; 4]], x: &[f32]) -> [f32; 4] {
+    for (wk, xk) in w.iter().zip(x.iter()) {
+        acc[0] += wk[0] * xk;
+        acc[1] += wk[1] * xk;
+        acc[2] += wk[2] * xk;
+        acc[3] += wk[3] * xk;
+    }
+    acc
+}
+
+impl F32View<'_> {
+    /// Whether every array has the length `dims` asks for (`None`) or the first that
+    /// does not.
+    pub fn check(&self) -> Option<&'static str> {
+        let d = self.dims;
+        let z = 4 * d.embed_blocks + d.hidden;
+        let lens: [(&'static str, usize, usize); 10] = [
+            ("input_mean", d.input, self.input_mean.len()),
+            ("input_inv_std", d.input, self.input_inv_std.len()),
+            ("w_in", d.embed_blocks * d.input, self.w_in.len()),
+            ("b_in", d.embed_blocks, self.b_in.len()),
+            ("w_gates", d.hidden * z, self.w_gates.len()),
+            ("b_gates", d.hidden, self.b_gates.len()),
+            ("w_out", d.output_blocks * d.hidden, self.w_out.len()),
+            ("b_out", d.output_blocks, self.b_out.len()),
+            ("output_std", d.output_blocks, self.output_std.len()),
+            ("output_mean", d.output_blocks, self.output_mean.len()),
+        ];
+        if d.output_blocks * 4 < d.output {
+            return Some("dims");
+        }
+        lens.iter().find(|(_, e, a)| e != a).map(|(n, _, _)| *n)
+    }
+
+    /// The kernel: one step. `z` (`E + H`) and `c` (`H`) are the state, `xn` (`I`)
+    /// and `h_new` (`H`) scratch. Lengths are trusted (never a panic).
+    #[inline(always)]
+    pub fn step(&self, z: &mut [f32], c: &mut [f32], xn: &mut [f32], h_new: &mut [f32], input: &[f32], out: &mut [f32]) {
+        let d = self.dims;
+        let e_len = 4 * d.embed_blocks;
+        for (((n, x), m), s) in xn.iter_mut().zip(input).zip(self.input_mean).zip(self.input_inv_std) {
+            *n = (x - m) * s;
+        }
+        let xn: &[f32] = xn;
+        for ((w, b), e4) in self.w_in.chunks_exact(d.input.max(1)).zip(self.b_in).zip(z.chunks_exact_mut(4)) {
+            let acc = dot4_f32([0.0; 4], w, xn);
+            for ((e, a), bb) in e4.iter_mut().zip(acc).zip(b) {
+                *e = math::tanh(a + bb);
+            }
+        }
+        let z_in: &[f32] = z;
+        let rows = self.w_gates.chunks_exact((e_len + d.hidden).max(1)).zip(self.b_gates);
+        for (((w, b), cj), hn) in rows.zip(c.iter_mut()).zip(h_new.iter_mut()) {
+            let acc = dot4_f32([0.0; 4], w, z_in);
+            let i = math::sigmoid(acc[0] + b[0]);
+            let f = math::sigmoid(acc[1] + b[1]);
+            let g = math::tanh(acc[2] + b[2]);
+            let o = math::sigmoid(acc[3] + b[3]);
+            *cj = f * *cj + i * g;
+            *hn = o * math::tanh(*cj);
+        }
+        if let Some(hz) = z.get_mut(e_len..) {
+            for (dst, src) in hz.iter_mut().zip(h_new.iter()) {
+                *dst = *src;
+            }
+        }
+        let h_new: &[f32] = h_new;
+        let mut ys = out.iter_mut();
+        let outs = self.w_out.chunks_exact(d.hidden.max(1)).zip(self.b_out).zip(self.output_std).zip(self.output_mean);
+        for (((w, b), s), m) in outs {
+            let acc = dot4_f32([0.0; 4], w, h_new);
+            for r in 0..4 {
+                if let Some(y) = ys.next() {
+                    *y = (acc[r] + b[r]) * s[r] + m[r];
+                }
+            }
+        }
+    }
+}
+
+/// The f32 network of fixed sizes in the exporter's layout: `I` inputs, input layer
+/// of `E = 4 * EB` rows, `H` cells over `Z = E + H` columns (`[e; h]`), `O` outputs
+/// in `OB` blocks. Each block stores its 4 rows column-interleaved (`[k][row]`);
+/// every row sums left to right in f32, sigmoid and tanh are `math::sigmoid` /
+/// `math::tanh` (libm), the arithmetic of `crate::lstm`.
 #[derive(Clone, Copy, Debug)]
 pub struct F32Lstm<
     const I: usize,
@@ -384,18 +639,6 @@ impl<const Z: usize, const H: usize> Default for F32State<Z, H> {
     }
 }
 
-/// Four rows at once, each summed left to right: `acc[r] + sum_k w[k][r] * x[k]`.
-#[inline(always)]
-fn dot4_f32<const K: usize>(mut acc: [f32; 4], w: &[[f32; 4]; K], x: &[f32; K]) -> [f32; 4] {
-    for (wk, xk) in w.iter().zip(x.iter()) {
-        acc[0] += wk[0] * xk;
-        acc[1] += wk[1] * xk;
-        acc[2] += wk[2] * xk;
-        acc[3] += wk[3] * xk;
-    }
-    acc
-}
-
 impl<const I: usize, const E: usize, const EB: usize, const H: usize, const Z: usize, const O: usize, const OB: usize>
     F32Lstm<I, E, EB, H, Z, O, OB>
 {
@@ -406,48 +649,36 @@ impl<const I: usize, const E: usize, const EB: usize, const H: usize, const Z: u
         assert!(Z == E + H, "Z must be E + H");
         assert!(4 * OB >= O && 4 * OB < O + 4, "OB must be ceil(O / 4)");
     };
+    /// Sizes.
+    pub const DIMS: F32Dims = F32Dims { input: I, embed_blocks: EB, hidden: H, output: O, output_blocks: OB };
     /// Multiply-accumulates per step.
     pub const MACS: u32 = (E * I + 4 * H * Z + O * H) as u32;
+
+    /// The network as a shape-erased view of its own arrays (no copy).
+    pub fn view(&self) -> F32View<'_> {
+        F32View {
+            dims: Self::DIMS,
+            input_mean: &self.input_mean,
+            input_inv_std: &self.input_inv_std,
+            w_in: self.w_in.as_flattened(),
+            b_in: &self.b_in,
+            w_gates: self.w_gates.as_flattened(),
+            b_gates: &self.b_gates,
+            w_out: self.w_out.as_flattened(),
+            b_out: &self.b_out,
+            output_std: &self.output_std,
+            output_mean: &self.output_mean,
+        }
+    }
 
     /// One control tick: advances `state` by the raw `input`, returns the outputs.
     #[inline(never)]
     pub fn step(&self, state: &mut F32State<Z, H>, input: &[f32; I]) -> [f32; O] {
         let () = Self::SHAPE;
         let mut xn = [0.0f32; I];
-        for (((n, x), m), s) in xn.iter_mut().zip(input).zip(&self.input_mean).zip(&self.input_inv_std) {
-            *n = (x - m) * s;
-        }
-        for ((w, b), e4) in self.w_in.iter().zip(&self.b_in).zip(state.z.chunks_exact_mut(4)) {
-            let acc = dot4_f32([0.0; 4], w, &xn);
-            for ((e, a), bb) in e4.iter_mut().zip(acc).zip(b) {
-                *e = math::tanh(a + bb);
-            }
-        }
         let mut h_new = [0.0f32; H];
-        for (((w, b), c), hn) in self.w_gates.iter().zip(&self.b_gates).zip(state.c.iter_mut()).zip(h_new.iter_mut()) {
-            let acc = dot4_f32([0.0; 4], w, &state.z);
-            let i = math::sigmoid(acc[0] + b[0]);
-            let f = math::sigmoid(acc[1] + b[1]);
-            let g = math::tanh(acc[2] + b[2]);
-            let o = math::sigmoid(acc[3] + b[3]);
-            *c = f * *c + i * g;
-            *hn = o * math::tanh(*c);
-        }
-        if let Some(hz) = state.z.get_mut(E..) {
-            for (d, s) in hz.iter_mut().zip(&h_new) {
-                *d = *s;
-            }
-        }
         let mut out = [0.0f32; O];
-        let mut rows = out.iter_mut();
-        for (((w, b), s), m) in self.w_out.iter().zip(&self.b_out).zip(&self.output_std).zip(&self.output_mean) {
-            let acc = dot4_f32([0.0; 4], w, &h_new);
-            for r in 0..4 {
-                if let Some(y) = rows.next() {
-                    *y = (acc[r] + b[r]) * s[r] + m[r];
-                }
-            }
-        }
+        self.view().step(&mut state.z, &mut state.c, &mut xn, &mut h_new, input, &mut out);
         out
     }
 }
