@@ -14,4 +14,5 @@ pub mod golden;
 pub mod log;
 pub mod lstm;
 pub mod math;
+pub mod model;
 pub mod quant;

@@ -34,6 +34,11 @@ pub enum Command {
     /// Import a model saved from PyTorch (safetensors, PyTorch names; see the README),
     /// validate it and write it in our format; optionally check it against a reference.
     Import(ImportArgs),
+    /// Quantise a model (f32 / int16 / int8) and write ONE Rust source file of fixed-size
+    /// arrays in the firmware kernels' layout (with normalisation, feature preset,
+    /// joints, control rate, dynamics, schema version, content hash and a self-check
+    /// digest); optionally report accuracy per precision on a CSV log.
+    Export(crate::export::cli::ExportArgs),
 }
 
 /// Which columns the network reads and predicts.
@@ -287,5 +292,6 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Train(a) => train_cmd(a),
         Command::Evaluate(a) => evaluate_cmd(a),
         Command::Import(a) => import_cmd(a),
+        Command::Export(a) => crate::export::cli::run(a),
     }
 }

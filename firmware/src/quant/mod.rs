@@ -54,6 +54,7 @@
 //! code on its own vectors, so host and target compute the same bits.
 
 pub mod act;
+pub mod golden;
 
 use crate::dsp;
 use crate::math;
