@@ -60,7 +60,7 @@ pub enum ExportError {
     /// A row's scale does not fit the fixed-point requantisation.
     #[error(
         "layer `{layer}` row {row}: scale {scale:e} overflows the Q3.12 pre-activation format \
-         (needs a right shift of {shift}, allowed 1..=62); the weights are too large or too small"
+         (needs a shift of {shift} after the high word, allowed 0..=31, i.e. 2^-64 <= scale < 2^-1); the weights are too large or too small"
     )]
     ScaleOverflow {
         /// Layer name.
@@ -229,19 +229,20 @@ fn quantise_row(w: &[f64], b: f64, max_w: i32, x_frac: u32, with_bias: bool) -> 
     (vec![0; w.len()], 0, 0.0, widened)
 }
 
-/// `M = mult * 2^-shift` with `mult` in `[2^30, 2^31)`.
+/// `M = mult * 2^-(32 + shift)` with `mult` in `[2^30, 2^31)`, `shift` in `0..=31`.
 fn requant(layer: &'static str, row: usize, m: f64) -> Result<Requant, ExportError> {
     if m == 0.0 {
         return Ok(Requant::ZERO);
     }
     let e = m.log2().floor() as i64;
     let mut mult = (m * 2f64.powi((30 - e) as i32)).round() as i64;
-    let mut shift = 30 - e;
+    let mut total = 30 - e;
     if mult >= 1 << 31 {
         mult >>= 1;
-        shift -= 1;
+        total -= 1;
     }
-    if !(1..=62).contains(&shift) {
+    let shift = total - 32;
+    if !(0..=31).contains(&shift) {
         return Err(ExportError::ScaleOverflow { layer, row, scale: m, shift });
     }
     Ok(Requant { mult: mult as i32, shift: shift as u8 })
@@ -917,6 +918,13 @@ pub mod cli {
         };
         let text = render(m, &net, &meta, dynamics.as_ref());
         crate::nn::write_atomic(&a.out, text.as_bytes())?;
+        // A source file: readable like any other (the temporary file was 0600).
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            std::fs::set_permissions(&a.out, std::fs::Permissions::from_mode(0o644))
+                .with_context(|| format!("setting permissions of {}", a.out.display()))?;
+        }
         Ok(net)
     }
 

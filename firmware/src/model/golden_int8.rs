@@ -7,7 +7,7 @@ use crate::model::{FeaturePreset, Precision};
 #[allow(unused_imports)]
 use crate::quant::{F32Lstm, F32State, I8Weights, I16Weights, QuantLstm, QuantState, Requant};
 /// SHA-256 (first 8 bytes) of everything below this line.
-pub const CONTENT_HASH: u64 = 0xf0db7d4df2438297;
+pub const CONTENT_HASH: u64 = 0x98d146399e1da760;
 /// Layout version of this file (`model_export::export::SCHEMA_VERSION`).
 pub const SCHEMA_VERSION: u32 = 1;
 /// Numeric precision of the network.
@@ -40,7 +40,7 @@ pub static NETWORK: Network = QuantLstm {
     [[0x7fe79fae, 0xf98b8f81, 0x7ffaa80e, 0x11a4a290], [0x000000d8, 0x000000c5, 0x0000005d, 0x0000007f]]
 ],
     in_bias: [[-504942, 228030, -76173, -76760], [818694, 96066, -101559, -171802], [-555785, -4045, -231531, 17604]],
-    in_requant: [[Requant { mult: 1393829324, shift: 39 }, Requant { mult: 1796098193, shift: 39 }, Requant { mult: 1614303780, shift: 39 }, Requant { mult: 1897066980, shift: 39 }], [Requant { mult: 1160615468, shift: 39 }, Requant { mult: 1537176552, shift: 39 }, Requant { mult: 1860625610, shift: 39 }, Requant { mult: 1885825879, shift: 39 }], [Requant { mult: 1237982780, shift: 39 }, Requant { mult: 1844786023, shift: 39 }, Requant { mult: 1494713094, shift: 39 }, Requant { mult: 1847248525, shift: 39 }]],
+    in_requant: [[Requant { mult: 1393829324, shift: 7 }, Requant { mult: 1796098193, shift: 7 }, Requant { mult: 1614303780, shift: 7 }, Requant { mult: 1897066980, shift: 7 }], [Requant { mult: 1160615468, shift: 7 }, Requant { mult: 1537176552, shift: 7 }, Requant { mult: 1860625610, shift: 7 }, Requant { mult: 1885825879, shift: 7 }], [Requant { mult: 1237982780, shift: 7 }, Requant { mult: 1844786023, shift: 7 }, Requant { mult: 1494713094, shift: 7 }, Requant { mult: 1847248525, shift: 7 }]],
     gate_w: [
     [[0x81b5b307, 0xd003b307, 0xafd19151, 0x3c86a4eb], [0xf01d1c62, 0x8173837a, 0xb3d05c5b, 0xe8fe1f81], [0x4cec059d, 0x62ced0ed, 0x71eb7224, 0xb94df69c], [0xc6df2970, 0x3797334d, 0x8bbc0553, 0xa6aa62a9], [0xc3fd4562, 0x552b6586, 0x814ee15e, 0x0ed7d7ea]],
     [[0x676490ce, 0x22d39e2a, 0x9e27b36b, 0x3d81e5dd], [0xe2ae3f39, 0x4f09949e, 0x6ceaaaec, 0xea3d6932], [0x81f97acc, 0xea0e991b, 0xd4677f41, 0xc48bf7ac], [0x5cf57b13, 0xc1c73124, 0xbf6142f5, 0x069030d6], [0x2040575e, 0x8179623c, 0x824ee838, 0x15994a3f]],
@@ -52,14 +52,14 @@ pub static NETWORK: Network = QuantLstm {
     [[0x871786d3, 0x02ad51de, 0x01d9a55c, 0x0c0bf8e0], [0xa081bb60, 0xcadc7f60, 0x3e462c44, 0x8fd79603], [0x74610c1b, 0xcbae5766, 0x9b92a7fc, 0x8343fad7], [0xd0c11937, 0x5369c892, 0x62cd6354, 0x7fee683a], [0xebab2905, 0xd1dbd3ef, 0x6e817596, 0xef6cb036]]
 ],
     gate_bias: [[1029955, -819554, -3015503, -1571843], [-3344019, -1121564, 2676433, -3118735], [-1067756, 4424900, -4365190, 107042], [-4241624, -4574011, -5162619, 1989140], [1610706, -187950, 303283, 354741], [-59343, 5786515, 6445073, 2342502], [3462244, -3478301, 1092300, -1240104], [5407805, -3726392, 5774027, -861394]],
-    gate_requant: [[Requant { mult: 1412611838, shift: 42 }, Requant { mult: 1305089193, shift: 42 }, Requant { mult: 1476102289, shift: 42 }, Requant { mult: 1426016143, shift: 42 }],
-        [Requant { mult: 1371073625, shift: 42 }, Requant { mult: 1460061321, shift: 42 }, Requant { mult: 1409346391, shift: 42 }, Requant { mult: 1395409154, shift: 42 }],
-        [Requant { mult: 1529186449, shift: 42 }, Requant { mult: 1331860133, shift: 42 }, Requant { mult: 1510653952, shift: 42 }, Requant { mult: 1510059226, shift: 42 }],
-        [Requant { mult: 1444393444, shift: 42 }, Requant { mult: 1508773017, shift: 42 }, Requant { mult: 1374894322, shift: 42 }, Requant { mult: 1512563011, shift: 42 }],
-        [Requant { mult: 1426135733, shift: 42 }, Requant { mult: 1437120754, shift: 42 }, Requant { mult: 1432892908, shift: 42 }, Requant { mult: 1384755555, shift: 42 }],
-        [Requant { mult: 1495203195, shift: 42 }, Requant { mult: 1497925906, shift: 42 }, Requant { mult: 1290896779, shift: 42 }, Requant { mult: 1417162462, shift: 42 }],
-        [Requant { mult: 1361994825, shift: 42 }, Requant { mult: 1437853132, shift: 42 }, Requant { mult: 1483391750, shift: 42 }, Requant { mult: 1473275082, shift: 42 }],
-        [Requant { mult: 1527989514, shift: 42 }, Requant { mult: 1478948719, shift: 42 }, Requant { mult: 1512669313, shift: 42 }, Requant { mult: 1503507174, shift: 42 }]],
+    gate_requant: [[Requant { mult: 1412611838, shift: 10 }, Requant { mult: 1305089193, shift: 10 }, Requant { mult: 1476102289, shift: 10 }, Requant { mult: 1426016143, shift: 10 }],
+        [Requant { mult: 1371073625, shift: 10 }, Requant { mult: 1460061321, shift: 10 }, Requant { mult: 1409346391, shift: 10 }, Requant { mult: 1395409154, shift: 10 }],
+        [Requant { mult: 1529186449, shift: 10 }, Requant { mult: 1331860133, shift: 10 }, Requant { mult: 1510653952, shift: 10 }, Requant { mult: 1510059226, shift: 10 }],
+        [Requant { mult: 1444393444, shift: 10 }, Requant { mult: 1508773017, shift: 10 }, Requant { mult: 1374894322, shift: 10 }, Requant { mult: 1512563011, shift: 10 }],
+        [Requant { mult: 1426135733, shift: 10 }, Requant { mult: 1437120754, shift: 10 }, Requant { mult: 1432892908, shift: 10 }, Requant { mult: 1384755555, shift: 10 }],
+        [Requant { mult: 1495203195, shift: 10 }, Requant { mult: 1497925906, shift: 10 }, Requant { mult: 1290896779, shift: 10 }, Requant { mult: 1417162462, shift: 10 }],
+        [Requant { mult: 1361994825, shift: 10 }, Requant { mult: 1437853132, shift: 10 }, Requant { mult: 1483391750, shift: 10 }, Requant { mult: 1473275082, shift: 10 }],
+        [Requant { mult: 1527989514, shift: 10 }, Requant { mult: 1478948719, shift: 10 }, Requant { mult: 1512669313, shift: 10 }, Requant { mult: 1503507174, shift: 10 }]],
     out_w: [
     [[0xcdc80f48, 0x40dc1e11, 0x7f15f64f, 0x00000000], [0x867f791a, 0x7c8a2a81, 0x379b0991, 0x00000000]]
 ],
@@ -71,4 +71,4 @@ pub const DYNAMICS_JOINTS: usize = 0;
 /// Self-check: streaming steps of `firmware::quant::golden::input` from the zero state.
 pub const SELF_CHECK_STEPS: usize = 10000;
 /// Self-check: FNV-1a of the output bits of those steps, computed by the exporter.
-pub const SELF_CHECK_FNV: u64 = 0x69766ae24f333c50;
+pub const SELF_CHECK_FNV: u64 = 0xdf886d0372822089;

@@ -30,7 +30,7 @@
 //! normalisation into a per-feature multiplier (`x_q = round((x - mean) * 2^12 / std)`,
 //! the only f32 arithmetic besides the output), the LSTM's two PyTorch biases into one.
 //! A row's accumulator goes to the Q3.12 pre-activation by a fixed-point multiplier:
-//! `pre = sat16((acc * m_r + 2^(s-1)) >> s)` in i64, `m_r` in `[2^30, 2^31)`.
+//! `pre = sat16(round(round(acc * m_r / 2^32) / 2^s))`, `m_r` in `[2^30, 2^31)`, `s` in 0..=31.
 //! The cell update is `c' = sat16(round(f*c >> 15) + round(i*g >> 19))`, `h' =
 //! round(o * tanh(sat16(2c')) >> 15)`. The output row is `y = acc * scale_o + offset_o`
 //! in f32 (`scale_o` holds `s_o * 2^-15 * output_std`, `offset_o` the bias and the
@@ -118,36 +118,28 @@ impl WeightFormat for I8Weights {
     }
 }
 
-/// Fixed-point requantisation of one row: multiplier in `[2^30, 2^31)`, right shift.
+/// Fixed-point requantisation of one row: `M = mult * 2^-(32 + shift)`, `mult` in
+/// `[2^30, 2^31)`, `shift` in `0..=31` (so `2^-64 <= M < 2^-1`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Requant {
     /// Multiplier (Q31 mantissa).
     pub mult: i32,
-    /// Right shift, `1..=62`.
+    /// Right shift after the rounded high word, `0..=31`.
     pub shift: u8,
 }
 
 impl Requant {
     /// A zero row (padding): maps every accumulator to 0.
-    pub const ZERO: Requant = Requant { mult: 0, shift: 1 };
+    pub const ZERO: Requant = Requant { mult: 0, shift: 0 };
 
-    /// `sat16((acc * mult + 2^(shift-1)) >> shift)`.
+    /// `sat16(rshift_round(hi32_round(acc * mult), shift))`: the rounded high word of
+    /// the 64-bit product (SMMULR), then a rounding right shift, then saturation.
     #[inline(always)]
     pub fn apply(self, acc: i32) -> i16 {
-        let s = (self.shift & 63) as u32;
-        let p = (acc as i64) * (self.mult as i64) + ((1i64 << s) >> 1);
-        sat16_i64(p >> s)
-    }
-}
-
-#[inline(always)]
-fn sat16_i64(v: i64) -> i16 {
-    if v > i16::MAX as i64 {
-        i16::MAX
-    } else if v < i16::MIN as i64 {
-        i16::MIN
-    } else {
-        v as i16
+        let hi = (((acc as i64) * (self.mult as i64) + (1i64 << 31)) >> 32) as i32;
+        let s = (self.shift & 31) as u32;
+        let round = ((1u32 << s) >> 1) as i32;
+        sat16(hi.saturating_add(round) >> s)
     }
 }
 
@@ -289,8 +281,11 @@ impl<F: WeightFormat> QuantView<'_, F> {
         let blocks = self.in_w.chunks_exact(iq).zip(self.in_bias.iter().zip(self.in_requant));
         for ((w, (b, rq)), zq_e) in blocks.zip(z.iter_mut()) {
             let acc = F::dot4(*b, w, xq);
-            let e = [0, 1, 2, 3].map(|r| act::tanh_q15(rq[r].apply(acc[r])));
-            *zq_e = [dsp::pack(e[0], e[1]), dsp::pack(e[2], e[3])];
+            let e0 = act::tanh_q15(rq[0].apply(acc[0]));
+            let e1 = act::tanh_q15(rq[1].apply(acc[1]));
+            let e2 = act::tanh_q15(rq[2].apply(acc[2]));
+            let e3 = act::tanh_q15(rq[3].apply(acc[3]));
+            *zq_e = [dsp::pack(e0, e1), dsp::pack(e2, e3)];
         }
         // LSTM: one block per cell, gates i, f, g, o.
         let z_in: &[[u32; 2]] = z;
