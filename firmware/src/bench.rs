@@ -238,7 +238,10 @@ impl Workload for Dynamics6F32 {
     const NAME: &'static str = "dynamics6_f32";
 
     fn new() -> Self {
-        Dynamics6F32 { q: core::array::from_fn(|k| 0.3 * k as f32 - 0.7), out: 0.0 }
+        Dynamics6F32 {
+            q: core::array::from_fn(|k| 0.3 * k as f32 - 0.7),
+            out: 0.0,
+        }
     }
 
     #[inline(never)]

@@ -138,7 +138,12 @@ mod asm {
     ///
     /// # Safety
     /// `w` and `x` must be valid for `n > 0` quads.
-    pub unsafe fn dot4_i16(acc: [i32; 4], w: *const [[u32; 4]; 2], x: *const [u32; 2], n: usize) -> [i32; 4] {
+    pub unsafe fn dot4_i16(
+        acc: [i32; 4],
+        w: *const [[u32; 4]; 2],
+        x: *const [u32; 2],
+        n: usize,
+    ) -> [i32; 4] {
         let [mut a0, mut a1, mut a2, mut a3] = acc;
         // SAFETY (caller: w, x valid for n quads): the loop reads exactly 2 * n words of `x` and 8 * n words of `w`
         // (n iterations of 2 pairs, 0 < n <= both slices' lengths by the caller);
@@ -183,7 +188,12 @@ mod asm {
     ///
     /// # Safety
     /// `w` and `x` must be valid for `n > 0` quads.
-    pub unsafe fn dot4_i8(acc: [i32; 4], w: *const [u32; 4], x: *const [u32; 2], n: usize) -> [i32; 4] {
+    pub unsafe fn dot4_i8(
+        acc: [i32; 4],
+        w: *const [u32; 4],
+        x: *const [u32; 2],
+        n: usize,
+    ) -> [i32; 4] {
         let [mut a0, mut a1, mut a2, mut a3] = acc;
         // SAFETY (caller: w, x valid for n quads): the loop reads exactly 2 * n words of `x` and 4 * n words of `w`
         // (n iterations, 0 < n <= both slices' lengths by the caller); it writes
@@ -245,9 +255,15 @@ mod tests {
     fn smlad_and_sxtb16_match_their_definitions() {
         assert_eq!(smlad(5, pack(3, -4), pack(-7, 2)), 5 - 21 - 8);
         // Both products 2^30: the sum wraps exactly like the instruction.
-        assert_eq!(smlad(0, pack(i16::MIN, i16::MIN), pack(i16::MIN, i16::MIN)), i32::MIN);
+        assert_eq!(
+            smlad(0, pack(i16::MIN, i16::MIN), pack(i16::MIN, i16::MIN)),
+            i32::MIN
+        );
         assert_eq!(sxtb16(pack_i8([-1, 2, -128, 127])), pack(-1, 2));
-        assert_eq!(sxtb16(pack_i8([-1, 2, -128, 127]).rotate_right(8)), pack(-128, 127));
+        assert_eq!(
+            sxtb16(pack_i8([-1, 2, -128, 127]).rotate_right(8)),
+            pack(-128, 127)
+        );
         assert_eq!(unpack(pack(-32768, 32767)), (-32768, 32767));
     }
 
@@ -257,7 +273,8 @@ mod tests {
         let w: [[[u32; 4]; 2]; Q] = core::array::from_fn(|q| {
             core::array::from_fn(|p| core::array::from_fn(|r| word((q * 8 + p * 4 + r) as u32)))
         });
-        let x: [[u32; 2]; Q] = core::array::from_fn(|q| core::array::from_fn(|p| word(1000 + (2 * q + p) as u32)));
+        let x: [[u32; 2]; Q] =
+            core::array::from_fn(|q| core::array::from_fn(|p| word(1000 + (2 * q + p) as u32)));
         let got = dot4_i16([1, -2, 3, -4], &w, &x);
         for r in 0..4 {
             let mut s: i64 = [1, -2, 3, -4][r];
@@ -275,11 +292,18 @@ mod tests {
     #[test]
     fn dot4_i8_equals_the_scalar_sum() {
         const Q: usize = 5;
-        let wi: [[[i8; 4]; 4]; Q] =
-            core::array::from_fn(|q| core::array::from_fn(|r| core::array::from_fn(|k| word((q * 16 + r * 4 + k) as u32) as i8)));
-        let xi: [[i16; 4]; Q] = core::array::from_fn(|q| core::array::from_fn(|k| word(5000 + (q * 4 + k) as u32) as i16));
-        let w: [[u32; 4]; Q] = core::array::from_fn(|q| core::array::from_fn(|r| pack_i8(wi[q][r])));
-        let x: [[u32; 2]; Q] = core::array::from_fn(|q| [pack(xi[q][0], xi[q][1]), pack(xi[q][2], xi[q][3])]);
+        let wi: [[[i8; 4]; 4]; Q] = core::array::from_fn(|q| {
+            core::array::from_fn(|r| {
+                core::array::from_fn(|k| word((q * 16 + r * 4 + k) as u32) as i8)
+            })
+        });
+        let xi: [[i16; 4]; Q] = core::array::from_fn(|q| {
+            core::array::from_fn(|k| word(5000 + (q * 4 + k) as u32) as i16)
+        });
+        let w: [[u32; 4]; Q] =
+            core::array::from_fn(|q| core::array::from_fn(|r| pack_i8(wi[q][r])));
+        let x: [[u32; 2]; Q] =
+            core::array::from_fn(|q| [pack(xi[q][0], xi[q][1]), pack(xi[q][2], xi[q][3])]);
         let got = dot4_i8([7, 0, -7, 100], &w, &x);
         for r in 0..4 {
             let mut s: i32 = [7, 0, -7, 100][r];
@@ -296,9 +320,12 @@ mod tests {
     fn dispatching_and_portable_versions_agree() {
         const Q: usize = 4;
         let w: [[[u32; 4]; 2]; Q] = core::array::from_fn(|q| {
-            core::array::from_fn(|p| core::array::from_fn(|r| word(77 + (q * 8 + p * 4 + r) as u32)))
+            core::array::from_fn(|p| {
+                core::array::from_fn(|r| word(77 + (q * 8 + p * 4 + r) as u32))
+            })
         });
-        let x: [[u32; 2]; Q] = core::array::from_fn(|q| core::array::from_fn(|p| word(99 + (2 * q + p) as u32)));
+        let x: [[u32; 2]; Q] =
+            core::array::from_fn(|q| core::array::from_fn(|p| word(99 + (2 * q + p) as u32)));
         assert_eq!(dot4_i16([0; 4], &w, &x), portable::dot4_i16([0; 4], &w, &x));
         let w8: [[u32; 4]; Q] = core::array::from_fn(|q| w[q][0]);
         assert_eq!(dot4_i8([0; 4], &w8, &x), portable::dot4_i8([0; 4], &w8, &x));

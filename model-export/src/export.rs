@@ -100,12 +100,23 @@ pub enum ExportError {
 fn check_finite(m: &LstmModel) -> Result<(), ExportError> {
     for (tensor, v) in m.tensors() {
         if let Some(index) = v.iter().position(|x| !x.is_finite()) {
-            return Err(ExportError::NotFinite { tensor, index, value: v[index] });
+            return Err(ExportError::NotFinite {
+                tensor,
+                index,
+                value: v[index],
+            });
         }
     }
-    for (tensor, v) in [("norm.input_std", &m.input_std), ("norm.output_std", &m.output_std)] {
+    for (tensor, v) in [
+        ("norm.input_std", &m.input_std),
+        ("norm.output_std", &m.output_std),
+    ] {
         if let Some(index) = v.iter().position(|&x| x <= 0.0) {
-            return Err(ExportError::BadStd { tensor, index, value: v[index] });
+            return Err(ExportError::BadStd {
+                tensor,
+                index,
+                value: v[index],
+            });
         }
     }
     Ok(())
@@ -158,7 +169,13 @@ fn layers(m: &LstmModel, in_cols: usize) -> Layers {
         }
         output.1[r] = m.b_out[r] as f64;
     }
-    Layers { e_pad: ep, h_pad: hp, input, gates, output }
+    Layers {
+        e_pad: ep,
+        h_pad: hp,
+        input,
+        gates,
+        output,
+    }
 }
 
 /// Per-row quantisation summary (for reports).
@@ -206,7 +223,13 @@ const ACC_LIMIT: f64 = 2_147_483_647.0;
 
 /// Quantises one row; returns the integer weights, the bias in accumulator scale and
 /// the row scale `s` (`w ~ s * w_q`). `x_frac`: fraction bits of the row's input.
-fn quantise_row(w: &[f64], b: f64, max_w: i32, x_frac: u32, with_bias: bool) -> (Vec<i32>, i32, f64, bool) {
+fn quantise_row(
+    w: &[f64],
+    b: f64,
+    max_w: i32,
+    x_frac: u32,
+    with_bias: bool,
+) -> (Vec<i32>, i32, f64, bool) {
     let maxabs = w.iter().fold(0.0f64, |a, x| a.max(x.abs()));
     let xs = (1u64 << x_frac) as f64;
     let b_eff = if with_bias { b.abs() } else { 0.0 };
@@ -216,7 +239,10 @@ fn quantise_row(w: &[f64], b: f64, max_w: i32, x_frac: u32, with_bias: bool) -> 
     }
     let mut widened = false;
     for _ in 0..64 {
-        let wq: Vec<i32> = w.iter().map(|x| ((x / s).round() as i32).clamp(-max_w, max_w)).collect();
+        let wq: Vec<i32> = w
+            .iter()
+            .map(|x| ((x / s).round() as i32).clamp(-max_w, max_w))
+            .collect();
         let bq = if with_bias { (b * xs / s).round() } else { 0.0 };
         let bound = wq.iter().map(|q| q.unsigned_abs() as f64).sum::<f64>() * 32768.0 + bq.abs();
         if bound < ACC_LIMIT {
@@ -243,9 +269,17 @@ fn requant(layer: &'static str, row: usize, m: f64) -> Result<Requant, ExportErr
     }
     let shift = total - 32;
     if !(0..=31).contains(&shift) {
-        return Err(ExportError::ScaleOverflow { layer, row, scale: m, shift });
+        return Err(ExportError::ScaleOverflow {
+            layer,
+            row,
+            scale: m,
+            shift,
+        });
     }
-    Ok(Requant { mult: mult as i32, shift: shift as u8 })
+    Ok(Requant {
+        mult: mult as i32,
+        shift: shift as u8,
+    })
 }
 
 /// Quantises a dense layer into blocks of 4 rows and quads of 4 columns.
@@ -279,7 +313,8 @@ fn quant_layer<F: WeightFormat>(
     let mut rq4 = Vec::new();
     for blk in 0..rows.len() / 4 {
         for q in 0..cols / 4 {
-            let m: [[i32; 4]; 4] = std::array::from_fn(|r| std::array::from_fn(|k| wq[4 * blk + r][4 * q + k]));
+            let m: [[i32; 4]; 4] =
+                std::array::from_fn(|r| std::array::from_fn(|k| wq[4 * blk + r][4 * q + k]));
             w.push(F::pack(m));
         }
         bias4.push(std::array::from_fn(|r| bq[4 * blk + r]));
@@ -296,8 +331,10 @@ impl<F: WeightFormat> QuantNet<F> {
         let ip = pad4(d.input);
         let l = layers(m, ip);
         let mut stats = RowStats::default();
-        let (in_w, in_bias, in_requant, _) = quant_layer::<F>("input", &l.input.0, &l.input.1, 12, &mut stats)?;
-        let (gate_w, gate_bias, gate_requant, _) = quant_layer::<F>("lstm", &l.gates.0, &l.gates.1, 15, &mut stats)?;
+        let (in_w, in_bias, in_requant, _) =
+            quant_layer::<F>("input", &l.input.0, &l.input.1, 12, &mut stats)?;
+        let (gate_w, gate_bias, gate_requant, _) =
+            quant_layer::<F>("lstm", &l.gates.0, &l.gates.1, 15, &mut stats)?;
         // Output layer: no integer bias; y = acc * s * 2^-15 * std + (b * std + mean).
         let mut out_w = Vec::new();
         let mut out_scale = Vec::new();
@@ -324,7 +361,9 @@ impl<F: WeightFormat> QuantNet<F> {
         }
         for blk in 0..ob {
             for q in 0..hp / 4 {
-                let mm: [[i32; 4]; 4] = std::array::from_fn(|r| std::array::from_fn(|k| rows_q[4 * blk + r][4 * q + k]));
+                let mm: [[i32; 4]; 4] = std::array::from_fn(|r| {
+                    std::array::from_fn(|k| rows_q[4 * blk + r][4 * q + k])
+                });
                 out_w.push(F::pack(mm));
             }
             out_scale.push(std::array::from_fn(|r| sc[4 * blk + r]));
@@ -442,7 +481,9 @@ fn interleave(rows: &[Vec<f64>]) -> Vec<[f32; 4]> {
 }
 
 fn blocks4(v: &[f64]) -> Vec<[f32; 4]> {
-    v.chunks_exact(4).map(|c| std::array::from_fn(|r| c[r] as f32)).collect()
+    v.chunks_exact(4)
+        .map(|c| std::array::from_fn(|r| c[r] as f32))
+        .collect()
 }
 
 impl F32Net {
@@ -520,7 +561,13 @@ impl F32Net {
 
     /// Bytes of flash the arrays take.
     pub fn flash_bytes(&self) -> usize {
-        (self.w_in.len() + self.b_in.len() + self.w_gates.len() + self.b_gates.len() + self.w_out.len() + 3 * self.b_out.len()) * 16
+        (self.w_in.len()
+            + self.b_in.len()
+            + self.w_gates.len()
+            + self.b_gates.len()
+            + self.w_out.len()
+            + 3 * self.b_out.len())
+            * 16
             + self.input_mean.len() * 8
     }
 }
@@ -594,7 +641,11 @@ pub struct ExportMeta {
 
 fn f32_lit(x: f32) -> String {
     let s = format!("{x:?}");
-    if s.contains('.') || s.contains('e') || s.contains("inf") || s.contains("NaN") { s } else { format!("{s}.0") }
+    if s.contains('.') || s.contains('e') || s.contains("inf") || s.contains("NaN") {
+        s
+    } else {
+        format!("{s}.0")
+    }
 }
 
 fn list<T>(v: &[T], f: impl Fn(&T) -> String) -> String {
@@ -603,7 +654,11 @@ fn list<T>(v: &[T], f: impl Fn(&T) -> String) -> String {
 }
 
 fn quads_i16(q: &[[u32; 4]; 2]) -> String {
-    format!("[{}, {}]", list(&q[0], |w| format!("{w:#010x}")), list(&q[1], |w| format!("{w:#010x}")))
+    format!(
+        "[{}, {}]",
+        list(&q[0], |w| format!("{w:#010x}")),
+        list(&q[1], |w| format!("{w:#010x}"))
+    )
 }
 
 fn quads_i8(q: &[u32; 4]) -> String {
@@ -611,7 +666,9 @@ fn quads_i8(q: &[u32; 4]) -> String {
 }
 
 fn requant4(r: &[Requant; 4]) -> String {
-    list(r, |r| format!("Requant {{ mult: {}, shift: {} }}", r.mult, r.shift))
+    list(r, |r| {
+        format!("Requant {{ mult: {}, shift: {} }}", r.mult, r.shift)
+    })
 }
 
 fn nested<T: Copy>(flat: &[T], per: usize, f: impl Fn(&T) -> String) -> String {
@@ -619,27 +676,87 @@ fn nested<T: Copy>(flat: &[T], per: usize, f: impl Fn(&T) -> String) -> String {
     format!("[\n    {}\n]", chunks.join(",\n    "))
 }
 
-fn write_quant<F: WeightFormat>(s: &mut String, n: &QuantNet<F>, fmt: &str, quad: impl Fn(&F::Quad) -> String) {
+fn write_quant<F: WeightFormat>(
+    s: &mut String,
+    n: &QuantNet<F>,
+    fmt: &str,
+    quad: impl Fn(&F::Quad) -> String,
+) {
     let d = n.dims;
-    let (i, iq, eb, h, hq, zq, o, ob) =
-        (d.input, d.input_quads, d.embed_blocks, d.hidden, d.hidden / 4, d.z_quads(), d.output, d.output_blocks);
-    let _ = writeln!(s, "/// The network's type: `{}` weights, sizes from the exporter.", F::NAME);
-    let _ = writeln!(s, "pub type Network = QuantLstm<{fmt}, {i}, {iq}, {eb}, {h}, {hq}, {zq}, {o}, {ob}>;");
+    let (i, iq, eb, h, hq, zq, o, ob) = (
+        d.input,
+        d.input_quads,
+        d.embed_blocks,
+        d.hidden,
+        d.hidden / 4,
+        d.z_quads(),
+        d.output,
+        d.output_blocks,
+    );
+    let _ = writeln!(
+        s,
+        "/// The network's type: `{}` weights, sizes from the exporter.",
+        F::NAME
+    );
+    let _ = writeln!(
+        s,
+        "pub type Network = QuantLstm<{fmt}, {i}, {iq}, {eb}, {h}, {hq}, {zq}, {o}, {ob}>;"
+    );
     let _ = writeln!(s, "/// The network's recurrent state.");
     let _ = writeln!(s, "pub type State = QuantState<{zq}, {h}>;");
     let _ = writeln!(s, "/// The network (flash).");
     let _ = writeln!(s, "pub static NETWORK: Network = QuantLstm {{");
-    let _ = writeln!(s, "    input_mean: {},", list(&n.input_mean, |x| f32_lit(*x)));
-    let _ = writeln!(s, "    input_scale: {},", list(&n.input_scale, |x| f32_lit(*x)));
+    let _ = writeln!(
+        s,
+        "    input_mean: {},",
+        list(&n.input_mean, |x| f32_lit(*x))
+    );
+    let _ = writeln!(
+        s,
+        "    input_scale: {},",
+        list(&n.input_scale, |x| f32_lit(*x))
+    );
     let _ = writeln!(s, "    in_w: {},", nested(&n.in_w, iq, &quad));
-    let _ = writeln!(s, "    in_bias: {},", list(&n.in_bias, |b| list(b, |x| x.to_string())));
-    let _ = writeln!(s, "    in_requant: [{}],", n.in_requant.iter().map(requant4).collect::<Vec<_>>().join(", "));
+    let _ = writeln!(
+        s,
+        "    in_bias: {},",
+        list(&n.in_bias, |b| list(b, |x| x.to_string()))
+    );
+    let _ = writeln!(
+        s,
+        "    in_requant: [{}],",
+        n.in_requant
+            .iter()
+            .map(requant4)
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
     let _ = writeln!(s, "    gate_w: {},", nested(&n.gate_w, zq, &quad));
-    let _ = writeln!(s, "    gate_bias: {},", list(&n.gate_bias, |b| list(b, |x| x.to_string())));
-    let _ = writeln!(s, "    gate_requant: [{}],", n.gate_requant.iter().map(requant4).collect::<Vec<_>>().join(",\n        "));
+    let _ = writeln!(
+        s,
+        "    gate_bias: {},",
+        list(&n.gate_bias, |b| list(b, |x| x.to_string()))
+    );
+    let _ = writeln!(
+        s,
+        "    gate_requant: [{}],",
+        n.gate_requant
+            .iter()
+            .map(requant4)
+            .collect::<Vec<_>>()
+            .join(",\n        ")
+    );
     let _ = writeln!(s, "    out_w: {},", nested(&n.out_w, hq, &quad));
-    let _ = writeln!(s, "    out_scale: {},", list(&n.out_scale, |b| list(b, |x| f32_lit(*x))));
-    let _ = writeln!(s, "    out_offset: {},", list(&n.out_offset, |b| list(b, |x| f32_lit(*x))));
+    let _ = writeln!(
+        s,
+        "    out_scale: {},",
+        list(&n.out_scale, |b| list(b, |x| f32_lit(*x)))
+    );
+    let _ = writeln!(
+        s,
+        "    out_offset: {},",
+        list(&n.out_offset, |b| list(b, |x| f32_lit(*x)))
+    );
     let _ = writeln!(s, "}};");
 }
 
@@ -650,13 +767,24 @@ fn write_f32(s: &mut String, n: &F32Net) {
     let z = e + h;
     let v4 = |b: &[f32; 4]| list(b, |x| f32_lit(*x));
     let _ = writeln!(s, "/// The network's type: f32, sizes from the exporter.");
-    let _ = writeln!(s, "pub type Network = F32Lstm<{i}, {e}, {eb}, {h}, {z}, {o}, {ob}>;");
+    let _ = writeln!(
+        s,
+        "pub type Network = F32Lstm<{i}, {e}, {eb}, {h}, {z}, {o}, {ob}>;"
+    );
     let _ = writeln!(s, "/// The network's recurrent state.");
     let _ = writeln!(s, "pub type State = F32State<{z}, {h}>;");
     let _ = writeln!(s, "/// The network (flash).");
     let _ = writeln!(s, "pub static NETWORK: Network = F32Lstm {{");
-    let _ = writeln!(s, "    input_mean: {},", list(&n.input_mean, |x| f32_lit(*x)));
-    let _ = writeln!(s, "    input_inv_std: {},", list(&n.input_inv_std, |x| f32_lit(*x)));
+    let _ = writeln!(
+        s,
+        "    input_mean: {},",
+        list(&n.input_mean, |x| f32_lit(*x))
+    );
+    let _ = writeln!(
+        s,
+        "    input_inv_std: {},",
+        list(&n.input_inv_std, |x| f32_lit(*x))
+    );
     let _ = writeln!(s, "    w_in: {},", nested(&n.w_in, i, v4));
     let _ = writeln!(s, "    b_in: {},", list(&n.b_in, v4));
     let _ = writeln!(s, "    w_gates: {},", nested(&n.w_gates, z, v4));
@@ -673,23 +801,50 @@ fn write_dynamics<const N: usize>(s: &mut String, m: &RigidBodyModel<N>) {
     let _ = writeln!(s, "/// Number of joints of the rigid-body model.");
     let _ = writeln!(s, "pub const DYNAMICS_JOINTS: usize = {N};");
     let _ = writeln!(s, "/// The identified (or nominal) rigid-body model, f32.");
-    let _ = writeln!(s, "pub static DYNAMICS: RigidBodyModel<{N}> = RigidBodyModel {{");
+    let _ = writeln!(
+        s,
+        "pub static DYNAMICS: RigidBodyModel<{N}> = RigidBodyModel {{"
+    );
     let _ = writeln!(s, "    joints: [");
     for j in &m.joints {
         let _ = writeln!(s, "        JointModel {{");
-        let _ = writeln!(s, "            origin_rotation: {},", list(&j.origin_rotation, v3));
-        let _ = writeln!(s, "            origin_translation_m: {},", v3(&j.origin_translation_m));
+        let _ = writeln!(
+            s,
+            "            origin_rotation: {},",
+            list(&j.origin_rotation, v3)
+        );
+        let _ = writeln!(
+            s,
+            "            origin_translation_m: {},",
+            v3(&j.origin_translation_m)
+        );
         let _ = writeln!(s, "            axis: {},", v3(&j.axis));
-        let _ = writeln!(s, "            inertial: {},", list(&j.inertial, |x| f32_lit(*x)));
-        let _ = writeln!(s, "            viscous_nm_s_rad: {},", f32_lit(j.viscous_nm_s_rad));
+        let _ = writeln!(
+            s,
+            "            inertial: {},",
+            list(&j.inertial, |x| f32_lit(*x))
+        );
+        let _ = writeln!(
+            s,
+            "            viscous_nm_s_rad: {},",
+            f32_lit(j.viscous_nm_s_rad)
+        );
         let _ = writeln!(s, "            coulomb_nm: {},", f32_lit(j.coulomb_nm));
         let _ = writeln!(s, "            offset_nm: {},", f32_lit(j.offset_nm));
-        let _ = writeln!(s, "            rotor_inertia_kg_m2: {},", f32_lit(j.rotor_inertia_kg_m2));
+        let _ = writeln!(
+            s,
+            "            rotor_inertia_kg_m2: {},",
+            f32_lit(j.rotor_inertia_kg_m2)
+        );
         let _ = writeln!(s, "        }},");
     }
     let _ = writeln!(s, "    ],");
     let _ = writeln!(s, "    gravity_m_s2: {},", v3(&m.gravity_m_s2));
-    let _ = writeln!(s, "    coulomb_inv_eps_s_rad: {},", f32_lit(m.coulomb_inv_eps_s_rad));
+    let _ = writeln!(
+        s,
+        "    coulomb_inv_eps_s_rad: {},",
+        f32_lit(m.coulomb_inv_eps_s_rad)
+    );
     let _ = writeln!(s, "}};");
 }
 
@@ -725,7 +880,9 @@ impl AnyDynamics {
             5 => AnyDynamics::J5(b(robot, &th)?),
             6 => AnyDynamics::J6(b(robot, &th)?),
             7 => AnyDynamics::J7(b(robot, &th)?),
-            n => bail!("the firmware dynamics export supports 1 to 7 modelled joints, the robot has {n}"),
+            n => bail!(
+                "the firmware dynamics export supports 1 to 7 modelled joints, the robot has {n}"
+            ),
         })
     }
 
@@ -744,11 +901,22 @@ impl AnyDynamics {
 
 /// The golden inputs of the self-check: `firmware::quant::golden::input`.
 pub fn golden_inputs(n_inputs: usize, steps: usize) -> Vec<Vec<f32>> {
-    (0..steps).map(|t| (0..n_inputs).map(|k| firmware::quant::golden::input(t, k)).collect()).collect()
+    (0..steps)
+        .map(|t| {
+            (0..n_inputs)
+                .map(|k| firmware::quant::golden::input(t, k))
+                .collect()
+        })
+        .collect()
 }
 
 /// Renders the whole generated file.
-pub fn render(m: &LstmModel, net: &Exported, meta: &ExportMeta, dynamics: Option<&AnyDynamics>) -> String {
+pub fn render(
+    m: &LstmModel,
+    net: &Exported,
+    meta: &ExportMeta,
+    dynamics: Option<&AnyDynamics>,
+) -> String {
     let mut body = String::new();
     let preset = match meta.preset.as_str() {
         "paper" => "Paper",
@@ -756,7 +924,10 @@ pub fn render(m: &LstmModel, net: &Exported, meta: &ExportMeta, dynamics: Option
         _ => "Custom",
     };
     let s = &mut body;
-    let _ = writeln!(s, "/// Layout version of this file (`model_export::export::SCHEMA_VERSION`).");
+    let _ = writeln!(
+        s,
+        "/// Layout version of this file (`model_export::export::SCHEMA_VERSION`)."
+    );
     let _ = writeln!(s, "pub const SCHEMA_VERSION: u32 = {SCHEMA_VERSION};");
     let prec = match net {
         Exported::F32(_) => "F32",
@@ -766,19 +937,44 @@ pub fn render(m: &LstmModel, net: &Exported, meta: &ExportMeta, dynamics: Option
     let _ = writeln!(s, "/// Numeric precision of the network.");
     let _ = writeln!(s, "pub const PRECISION: Precision = Precision::{prec};");
     let _ = writeln!(s, "/// Feature preset the network was trained with.");
-    let _ = writeln!(s, "pub const FEATURE_PRESET: FeaturePreset = FeaturePreset::{preset};");
+    let _ = writeln!(
+        s,
+        "pub const FEATURE_PRESET: FeaturePreset = FeaturePreset::{preset};"
+    );
     let _ = writeln!(s, "/// Number of inputs.");
     let _ = writeln!(s, "pub const INPUTS: usize = {};", m.dims.input);
     let _ = writeln!(s, "/// Number of outputs.");
     let _ = writeln!(s, "pub const OUTPUTS: usize = {};", m.dims.output);
     let _ = writeln!(s, "/// Input feature names, in input order.");
-    let _ = writeln!(s, "pub const INPUT_NAMES: [&str; {}] = {};", m.dims.input, list(&m.input_names, |n| format!("{n:?}")));
+    let _ = writeln!(
+        s,
+        "pub const INPUT_NAMES: [&str; {}] = {};",
+        m.dims.input,
+        list(&m.input_names, |n| format!("{n:?}"))
+    );
     let _ = writeln!(s, "/// Output names, in output order.");
-    let _ = writeln!(s, "pub const OUTPUT_NAMES: [&str; {}] = {};", m.dims.output, list(&m.output_names, |n| format!("{n:?}")));
+    let _ = writeln!(
+        s,
+        "pub const OUTPUT_NAMES: [&str; {}] = {};",
+        m.dims.output,
+        list(&m.output_names, |n| format!("{n:?}"))
+    );
     let _ = writeln!(s, "/// Indices (0-based) of the compensated joints.");
-    let _ = writeln!(s, "pub const JOINT_INDICES: [usize; {}] = {};", meta.joints.len(), list(&meta.joints, |j| j.to_string()));
-    let _ = writeln!(s, "/// Control (compensator) rate the network was trained for [Hz].");
-    let _ = writeln!(s, "pub const CONTROL_RATE_HZ: u32 = {};", meta.control_rate_hz);
+    let _ = writeln!(
+        s,
+        "pub const JOINT_INDICES: [usize; {}] = {};",
+        meta.joints.len(),
+        list(&meta.joints, |j| j.to_string())
+    );
+    let _ = writeln!(
+        s,
+        "/// Control (compensator) rate the network was trained for [Hz]."
+    );
+    let _ = writeln!(
+        s,
+        "pub const CONTROL_RATE_HZ: u32 = {};",
+        meta.control_rate_hz
+    );
     match net {
         Exported::F32(n) => write_f32(s, n),
         Exported::Int16(n) => write_quant(s, n, "I16Weights", quads_i16),
@@ -787,26 +983,63 @@ pub fn render(m: &LstmModel, net: &Exported, meta: &ExportMeta, dynamics: Option
     if let Some(d) = dynamics {
         d.write(s);
     } else {
-        let _ = writeln!(s, "/// Number of joints of the rigid-body model (0: none exported).");
+        let _ = writeln!(
+            s,
+            "/// Number of joints of the rigid-body model (0: none exported)."
+        );
         let _ = writeln!(s, "pub const DYNAMICS_JOINTS: usize = 0;");
     }
     let outs = net.stream(&golden_inputs(m.dims.input, meta.self_check_steps));
-    let _ = writeln!(s, "/// Self-check: streaming steps of `firmware::quant::golden::input` from the zero state.");
-    let _ = writeln!(s, "pub const SELF_CHECK_STEPS: usize = {};", meta.self_check_steps);
-    let _ = writeln!(s, "/// Self-check: FNV-1a of the output bits of those steps, computed by the exporter.");
-    let _ = writeln!(s, "pub const SELF_CHECK_FNV: u64 = {:#018x};", output_digest(&outs));
+    let _ = writeln!(
+        s,
+        "/// Self-check: streaming steps of `firmware::quant::golden::input` from the zero state."
+    );
+    let _ = writeln!(
+        s,
+        "pub const SELF_CHECK_STEPS: usize = {};",
+        meta.self_check_steps
+    );
+    let _ = writeln!(
+        s,
+        "/// Self-check: FNV-1a of the output bits of those steps, computed by the exporter."
+    );
+    let _ = writeln!(
+        s,
+        "pub const SELF_CHECK_FNV: u64 = {:#018x};",
+        output_digest(&outs)
+    );
     let hash = Sha256::digest(body.as_bytes());
     let hash64 = u64::from_be_bytes(hash[..8].try_into().unwrap_or([0; 8]));
     let mut out = String::new();
-    let _ = writeln!(out, "// Generated by `model-export export` (schema {SCHEMA_VERSION}); do not edit.");
-    let _ = writeln!(out, "// Network {}x{}x{}x{} ({}), preset `{}`, joints {:?}, {} Hz.", m.dims.input, m.dims.embed, m.dims.hidden, m.dims.output, prec, meta.preset, meta.joints, meta.control_rate_hz);
+    let _ = writeln!(
+        out,
+        "// Generated by `model-export export` (schema {SCHEMA_VERSION}); do not edit."
+    );
+    let _ = writeln!(
+        out,
+        "// Network {}x{}x{}x{} ({}), preset `{}`, joints {:?}, {} Hz.",
+        m.dims.input,
+        m.dims.embed,
+        m.dims.hidden,
+        m.dims.output,
+        prec,
+        meta.preset,
+        meta.joints,
+        meta.control_rate_hz
+    );
     let _ = writeln!(out, "#[allow(unused_imports)]");
     let _ = writeln!(out, "use crate::dynamics::{{JointModel, RigidBodyModel}};");
     let _ = writeln!(out, "#[allow(unused_imports)]");
     let _ = writeln!(out, "use crate::model::{{FeaturePreset, Precision}};");
     let _ = writeln!(out, "#[allow(unused_imports)]");
-    let _ = writeln!(out, "use crate::quant::{{F32Lstm, F32State, I8Weights, I16Weights, QuantLstm, QuantState, Requant}};");
-    let _ = writeln!(out, "/// SHA-256 (first 8 bytes) of everything below this line.");
+    let _ = writeln!(
+        out,
+        "use crate::quant::{{F32Lstm, F32State, I8Weights, I16Weights, QuantLstm, QuantState, Requant}};"
+    );
+    let _ = writeln!(
+        out,
+        "/// SHA-256 (first 8 bytes) of everything below this line."
+    );
     let _ = writeln!(out, "pub const CONTENT_HASH: u64 = {hash64:#018x};");
     out.push_str(&body);
     out
@@ -868,14 +1101,21 @@ pub mod cli {
 
     /// Reads the board's flash limit from a budget file.
     pub fn flash_budget(path: &std::path::Path) -> Result<u64> {
-        let text = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-        let v: toml::Value = toml::from_str(&text).with_context(|| format!("parsing {}", path.display()))?;
+        let text =
+            std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+        let v: toml::Value =
+            toml::from_str(&text).with_context(|| format!("parsing {}", path.display()))?;
         v.get("binary")
             .and_then(|b| b.get("board"))
             .and_then(|b| b.get("flash_bytes"))
             .and_then(toml::Value::as_integer)
             .map(|x| x as u64)
-            .with_context(|| format!("{}: field `binary.board.flash_bytes` missing", path.display()))
+            .with_context(|| {
+                format!(
+                    "{}: field `binary.board.flash_bytes` missing",
+                    path.display()
+                )
+            })
     }
 
     /// Builds the model to export.
@@ -886,7 +1126,15 @@ pub mod cli {
                 let [i, e, h, o] = a.dims[..] else {
                     bail!("--dims needs 4 sizes I,E,H,O, got {:?}", a.dims);
                 };
-                let mut m = LstmModel::init(LstmDims { input: i, embed: e, hidden: h, output: o }, a.seed);
+                let mut m = LstmModel::init(
+                    LstmDims {
+                        input: i,
+                        embed: e,
+                        hidden: h,
+                        output: o,
+                    },
+                    a.seed,
+                );
                 m.preset = a.preset.clone();
                 Ok(m)
             }
@@ -895,17 +1143,30 @@ pub mod cli {
 
     /// Exports `m` to `a.out`; returns the exported network.
     pub fn export(m: &LstmModel, a: &ExportArgs) -> Result<Exported> {
-        let net = Exported::new(m, a.precision).with_context(|| format!("exporting {}", a.model.as_ref().map_or("the seeded network".into(), |p| p.display().to_string())))?;
+        let net = Exported::new(m, a.precision).with_context(|| {
+            format!(
+                "exporting {}",
+                a.model
+                    .as_ref()
+                    .map_or("the seeded network".into(), |p| p.display().to_string())
+            )
+        })?;
         if let Some(b) = &a.budgets {
             let budget = flash_budget(b)?;
             let bytes = net.flash_bytes();
             if bytes as u64 > budget {
-                return Err(ExportError::TooLarge { bytes, budget, source_file: b.display().to_string() }.into());
+                return Err(ExportError::TooLarge {
+                    bytes,
+                    budget,
+                    source_file: b.display().to_string(),
+                }
+                .into());
             }
         }
         let dynamics = match &a.robot {
             Some(p) => {
-                let robot = crate::robot::Robot::load(p).with_context(|| format!("reading robot {}", p.display()))?;
+                let robot = crate::robot::Robot::load(p)
+                    .with_context(|| format!("reading robot {}", p.display()))?;
                 Some(AnyDynamics::nominal(&robot)?)
             }
             None => None,
@@ -932,13 +1193,28 @@ pub mod cli {
     pub fn run(a: ExportArgs) -> Result<()> {
         let m = model(&a)?;
         let net = export(&m, &a)?;
-        println!("wrote {} ({}, {} bytes of network arrays)", a.out.display(), a.precision.name(), net.flash_bytes());
+        println!(
+            "wrote {} ({}, {} bytes of network arrays)",
+            a.out.display(),
+            a.precision.name(),
+            net.flash_bytes()
+        );
         if let Some(log) = &a.accuracy_log {
             let table = crate::nn::data::Table::read(log)?;
-            let spec = crate::nn::data::FeatureSpec { preset: m.preset.clone(), inputs: m.input_names.clone(), targets: vec![] };
+            let spec = crate::nn::data::FeatureSpec {
+                preset: m.preset.clone(),
+                inputs: m.input_names.clone(),
+                targets: vec![],
+            };
             let inputs: Vec<Vec<f32>> = {
-                let cols: Vec<&[f32]> = spec.inputs.iter().map(|c| table.column(c)).collect::<Result<_>>()?;
-                (0..table.len()).map(|t| cols.iter().map(|c| c[t]).collect()).collect()
+                let cols: Vec<&[f32]> = spec
+                    .inputs
+                    .iter()
+                    .map(|c| table.column(c))
+                    .collect::<Result<_>>()?;
+                (0..table.len())
+                    .map(|t| cols.iter().map(|c| c[t]).collect())
+                    .collect()
             };
             print!("{}", accuracy_markdown(&m, &inputs, None)?);
         }
@@ -949,15 +1225,26 @@ pub mod cli {
 /// Per-output RMS of each precision's streamed output against the f32 firmware step
 /// (`nn::model::LstmModel::stream`), and, with `targets`, each one's RMS error against
 /// the targets ("compensated RMS") beside f32's.
-pub fn accuracy_markdown(m: &LstmModel, inputs: &[Vec<f32>], targets: Option<&[Vec<f32>]>) -> Result<String> {
+pub fn accuracy_markdown(
+    m: &LstmModel,
+    inputs: &[Vec<f32>],
+    targets: Option<&[Vec<f32>]>,
+) -> Result<String> {
     let reference = m.stream(inputs)?;
     let o = m.dims.output;
     let rms = |a: &[Vec<f32>], b: &[Vec<f32>], j: usize| -> f64 {
-        let s: f64 = a.iter().zip(b).map(|(x, y)| ((x[j] - y[j]) as f64).powi(2)).sum();
+        let s: f64 = a
+            .iter()
+            .zip(b)
+            .map(|(x, y)| ((x[j] - y[j]) as f64).powi(2))
+            .sum();
         (s / a.len().max(1) as f64).sqrt()
     };
     let mut out = String::new();
-    let _ = writeln!(out, "| precision | output | RMS vs f32 step | compensated RMS | f32 compensated RMS | ratio |");
+    let _ = writeln!(
+        out,
+        "| precision | output | RMS vs f32 step | compensated RMS | f32 compensated RMS | ratio |"
+    );
     let _ = writeln!(out, "|---|---|---:|---:|---:|---:|");
     for p in Precision::ALL {
         let y = Exported::new(m, p)?.stream(inputs);
@@ -967,11 +1254,20 @@ pub fn accuracy_markdown(m: &LstmModel, inputs: &[Vec<f32>], targets: Option<&[V
                 Some(t) => {
                     let c = rms(&y, t, j);
                     let f = rms(&reference, t, j);
-                    (format!("{c:.5}"), format!("{f:.5}"), format!("{:.4}", c / f))
+                    (
+                        format!("{c:.5}"),
+                        format!("{f:.5}"),
+                        format!("{:.4}", c / f),
+                    )
                 }
                 None => ("-".into(), "-".into(), "-".into()),
             };
-            let _ = writeln!(out, "| {} | {} | {d:.3e} | {c} | {f} | {r} |", p.name(), m.output_names[j]);
+            let _ = writeln!(
+                out,
+                "| {} | {} | {d:.3e} | {c} | {f} | {r} |",
+                p.name(),
+                m.output_names[j]
+            );
         }
     }
     Ok(out)

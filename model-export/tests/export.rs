@@ -7,7 +7,10 @@ use model_export::nn::model::LstmModel;
 use std::path::{Path, PathBuf};
 
 fn workspace() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).parent().expect("workspace").to_path_buf()
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .expect("workspace")
+        .to_path_buf()
 }
 
 fn args(out: PathBuf, precision: Precision) -> ExportArgs {
@@ -38,7 +41,11 @@ fn regenerating_the_golden_models_gives_the_committed_files() {
         let fresh = std::fs::read_to_string(&out).expect("read");
         let committed = workspace().join(format!("firmware/src/model/golden_{}.rs", p.name()));
         let committed = std::fs::read_to_string(&committed).expect("committed golden file");
-        assert!(fresh == committed, "{}: regenerate with firmware/scripts/regenerate-models.sh", p.name());
+        assert!(
+            fresh == committed,
+            "{}: regenerate with firmware/scripts/regenerate-models.sh",
+            p.name()
+        );
         assert!(fresh.contains("pub const CONTENT_HASH: u64 = 0x"));
     }
 }
@@ -52,17 +59,39 @@ fn quantised_networks_track_the_f32_step_on_the_pytorch_fixture() {
     println!("{table}");
     let reference = m.stream(&inputs).expect("f32");
     // RMS of the difference to the f32 firmware step, per output, over 400 steps.
-    for (p, tol) in [(Precision::F32, 1e-6f64), (Precision::Int16, 1.5e-3), (Precision::Int8, 3e-3)] {
+    for (p, tol) in [
+        (Precision::F32, 1e-6f64),
+        (Precision::Int16, 1.5e-3),
+        (Precision::Int8, 3e-3),
+    ] {
         let y = Exported::new(&m, p).expect("export").stream(&inputs);
         for j in 0..m.dims.output {
-            let ms = y.iter().zip(&reference).map(|(a, b)| ((a[j] - b[j]) as f64).powi(2)).sum::<f64>() / y.len() as f64;
-            assert!(ms.sqrt() <= tol, "{} output {j}: RMS vs f32 {}", p.name(), ms.sqrt());
+            let ms = y
+                .iter()
+                .zip(&reference)
+                .map(|(a, b)| ((a[j] - b[j]) as f64).powi(2))
+                .sum::<f64>()
+                / y.len() as f64;
+            assert!(
+                ms.sqrt() <= tol,
+                "{} output {j}: RMS vs f32 {}",
+                p.name(),
+                ms.sqrt()
+            );
         }
     }
 }
 
 fn small() -> LstmModel {
-    LstmModel::init(LstmDims { input: 3, embed: 4, hidden: 4, output: 1 }, 5)
+    LstmModel::init(
+        LstmDims {
+            input: 3,
+            embed: 4,
+            hidden: 4,
+            output: 1,
+        },
+        5,
+    )
 }
 
 #[test]
@@ -72,7 +101,17 @@ fn nan_or_infinite_weights_are_refused_naming_the_tensor() {
         m.w_hh[6] = bad;
         for p in Precision::ALL {
             let err = Exported::new(&m, p).unwrap_err();
-            assert!(matches!(err, ExportError::NotFinite { tensor: "lstm.weight_hh_l0", index: 6, .. }), "{err}");
+            assert!(
+                matches!(
+                    err,
+                    ExportError::NotFinite {
+                        tensor: "lstm.weight_hh_l0",
+                        index: 6,
+                        ..
+                    }
+                ),
+                "{err}"
+            );
             assert!(err.to_string().contains("lstm.weight_hh_l0"), "{err}");
         }
     }
@@ -85,7 +124,10 @@ fn scales_that_overflow_the_q_format_are_refused() {
         *w *= 1.0e9;
     }
     let err = Exported::new(&m, Precision::Int16).unwrap_err();
-    assert!(matches!(err, ExportError::ScaleOverflow { layer: "input", .. }), "{err}");
+    assert!(
+        matches!(err, ExportError::ScaleOverflow { layer: "input", .. }),
+        "{err}"
+    );
     assert!(err.to_string().contains("overflows the Q3.12"), "{err}");
     // f32 has no Q format: the same weights export.
     assert!(Exported::new(&m, Precision::F32).is_ok());
@@ -95,7 +137,11 @@ fn scales_that_overflow_the_q_format_are_refused() {
 fn a_model_over_the_flash_budget_is_refused_and_writes_nothing() {
     let dir = tempfile::tempdir().expect("tempdir");
     let budgets = dir.path().join("budgets.toml");
-    std::fs::write(&budgets, "[binary.board]\nflash_bytes = 4096\nram_bytes = 1\nstack_reserve_bytes = 1\n").expect("write");
+    std::fs::write(
+        &budgets,
+        "[binary.board]\nflash_bytes = 4096\nram_bytes = 1\nstack_reserve_bytes = 1\n",
+    )
+    .expect("write");
     let out = dir.path().join("model.rs");
     let mut a = args(out.clone(), Precision::Int16);
     a.dims = vec![9, 64, 64, 3];

@@ -61,7 +61,10 @@ impl FeaturePreset {
 /// and that its network's `step` takes `[f32; INPUTS]` and returns `[f32; OUTPUTS]`.
 macro_rules! check_model {
     ($m:ident) => {
-        const _: () = assert!($m::SCHEMA_VERSION == SCHEMA_VERSION, "model file of another schema version");
+        const _: () = assert!(
+            $m::SCHEMA_VERSION == SCHEMA_VERSION,
+            "model file of another schema version"
+        );
         const _: () = assert!(
             $m::FEATURE_PRESET.fits($m::JOINT_INDICES.len(), $m::INPUTS, $m::OUTPUTS),
             "the model's network does not take its preset's feature layout"
@@ -133,7 +136,10 @@ macro_rules! stream_model {
     ($m:ident, $steps:expr, $emit:expr) => {{
         let mut state = $m::State::new();
         for t in 0..$steps {
-            let y = $m::NETWORK.step(&mut state, &crate::quant::golden::inputs::<{ $m::INPUTS }>(t));
+            let y = $m::NETWORK.step(
+                &mut state,
+                &crate::quant::golden::inputs::<{ $m::INPUTS }>(t),
+            );
             $emit(t, &y[..]);
         }
     }};
@@ -207,7 +213,12 @@ mod tests {
             fn $test() {
                 let mut d = Digest::default();
                 stream_model!($m, $m::SELF_CHECK_STEPS, |_, y: &[f32]| d.add(y));
-                assert_eq!(d.0, $m::SELF_CHECK_FNV, "{}: compiled model != exporter", stringify!($m));
+                assert_eq!(
+                    d.0,
+                    $m::SELF_CHECK_FNV,
+                    "{}: compiled model != exporter",
+                    stringify!($m)
+                );
             }
         };
     }
@@ -233,7 +244,10 @@ mod tests {
                     worst = worst.max((a - b).abs());
                 }
             });
-            assert!(worst < if g == GoldenModel::Int16 { 2e-3 } else { 3e-2 }, "{g:?}: {worst}");
+            assert!(
+                worst < if g == GoldenModel::Int16 { 2e-3 } else { 3e-2 },
+                "{g:?}: {worst}"
+            );
             assert!(worst > 0.0, "{g:?} identical to f32: not quantised?");
         }
     }

@@ -97,7 +97,10 @@ impl WeightFormat for I16Weights {
     }
     fn pack(w: [[i32; 4]; 4]) -> Self::Quad {
         let p = |r: usize, k: usize| dsp::pack(w[r][k] as i16, w[r][k + 1] as i16);
-        [[p(0, 0), p(1, 0), p(2, 0), p(3, 0)], [p(0, 2), p(1, 2), p(2, 2), p(3, 2)]]
+        [
+            [p(0, 0), p(1, 0), p(2, 0), p(3, 0)],
+            [p(0, 2), p(1, 2), p(2, 2), p(3, 2)],
+        ]
     }
 }
 
@@ -244,7 +247,8 @@ impl<F: WeightFormat> QuantView<'_, F> {
             ("out_scale", d.output_blocks, self.out_scale.len()),
             ("out_offset", d.output_blocks, self.out_offset.len()),
         ];
-        let shape_ok = d.hidden % 4 == 0 && d.input_quads * 4 >= d.input && d.output_blocks * 4 >= d.output;
+        let shape_ok =
+            d.hidden % 4 == 0 && d.input_quads * 4 >= d.input && d.output_blocks * 4 >= d.output;
         if !shape_ok {
             return Some("dims");
         }
@@ -272,13 +276,21 @@ impl<F: WeightFormat> QuantView<'_, F> {
         for q in xq.iter_mut() {
             *q = [0, 0];
         }
-        for (k, ((x, m), s)) in input.iter().zip(self.input_mean).zip(self.input_scale).enumerate() {
+        for (k, ((x, m), s)) in input
+            .iter()
+            .zip(self.input_mean)
+            .zip(self.input_scale)
+            .enumerate()
+        {
             if let Some(q) = xq.get_mut(k >> 2) {
                 put(q, k & 3, quantise_i16((x - m) * s));
             }
         }
         // Input layer: e = tanh(pre), Q0.15, into the e part of z.
-        let blocks = self.in_w.chunks_exact(iq).zip(self.in_bias.iter().zip(self.in_requant));
+        let blocks = self
+            .in_w
+            .chunks_exact(iq)
+            .zip(self.in_bias.iter().zip(self.in_requant));
         for ((w, (b, rq)), zq_e) in blocks.zip(z.iter_mut()) {
             let acc = F::dot4(*b, w, xq);
             let e0 = act::tanh_q15(rq[0].apply(acc[0]));
@@ -289,7 +301,10 @@ impl<F: WeightFormat> QuantView<'_, F> {
         }
         // LSTM: one block per cell, gates i, f, g, o.
         let z_in: &[[u32; 2]] = z;
-        let cells = self.gate_w.chunks_exact(zq).zip(self.gate_bias.iter().zip(self.gate_requant));
+        let cells = self
+            .gate_w
+            .chunks_exact(zq)
+            .zip(self.gate_bias.iter().zip(self.gate_requant));
         for (j, ((w, (b, rq)), cj)) in cells.zip(c.iter_mut()).enumerate() {
             let acc = F::dot4(*b, w, z_in);
             let i = act::sigmoid_q15(rq[0].apply(acc[0])) as i32;
@@ -312,7 +327,10 @@ impl<F: WeightFormat> QuantView<'_, F> {
         }
         // Output layer, f32 de-normalisation.
         let mut rows = out.iter_mut();
-        let outs = self.out_w.chunks_exact(hq).zip(self.out_scale.iter().zip(self.out_offset));
+        let outs = self
+            .out_w
+            .chunks_exact(hq)
+            .zip(self.out_scale.iter().zip(self.out_offset));
         for (w, (s, off)) in outs {
             let acc = F::dot4([0; 4], w, h_new);
             for r in 0..4 {
@@ -376,7 +394,10 @@ pub struct QuantState<const ZQ: usize, const H: usize> {
 impl<const ZQ: usize, const H: usize> QuantState<ZQ, H> {
     /// The zero state a sequence starts from.
     pub const fn new() -> Self {
-        QuantState { z: [[0; 2]; ZQ], c: [0; H] }
+        QuantState {
+            z: [[0; 2]; ZQ],
+            c: [0; H],
+        }
     }
 
     /// Forgets the past: back to the zero state.
@@ -412,8 +433,14 @@ impl<
         assert!(4 * OB >= O && 4 * OB < O + 4, "OB must be ceil(O / 4)");
     };
     /// Sizes.
-    pub const DIMS: QuantDims =
-        QuantDims { input: I, input_quads: IQ, embed_blocks: EB, hidden: H, output: O, output_blocks: OB };
+    pub const DIMS: QuantDims = QuantDims {
+        input: I,
+        input_quads: IQ,
+        embed_blocks: EB,
+        hidden: H,
+        output: O,
+        output_blocks: OB,
+    };
     /// Multiply-accumulates per step (without padding).
     pub const MACS: u32 = (4 * EB * I + 4 * H * (4 * EB + H) + O * H) as u32;
 
@@ -443,7 +470,14 @@ impl<
         let mut xq = [[0u32; 2]; IQ];
         let mut h_new = [[0u32; 2]; HQ];
         let mut out = [0.0f32; O];
-        self.view().step(&mut state.z, &mut state.c, &mut xq, &mut h_new, input, &mut out);
+        self.view().step(
+            &mut state.z,
+            &mut state.c,
+            &mut xq,
+            &mut h_new,
+            input,
+            &mut out,
+        );
         out
     }
 }
@@ -529,21 +563,42 @@ impl F32View<'_> {
     /// The kernel: one step. `z` (`E + H`) and `c` (`H`) are the state, `xn` (`I`)
     /// and `h_new` (`H`) scratch. Lengths are trusted (never a panic).
     #[inline(always)]
-    pub fn step(&self, z: &mut [f32], c: &mut [f32], xn: &mut [f32], h_new: &mut [f32], input: &[f32], out: &mut [f32]) {
+    pub fn step(
+        &self,
+        z: &mut [f32],
+        c: &mut [f32],
+        xn: &mut [f32],
+        h_new: &mut [f32],
+        input: &[f32],
+        out: &mut [f32],
+    ) {
         let d = self.dims;
         let e_len = 4 * d.embed_blocks;
-        for (((n, x), m), s) in xn.iter_mut().zip(input).zip(self.input_mean).zip(self.input_inv_std) {
+        for (((n, x), m), s) in xn
+            .iter_mut()
+            .zip(input)
+            .zip(self.input_mean)
+            .zip(self.input_inv_std)
+        {
             *n = (x - m) * s;
         }
         let xn: &[f32] = xn;
-        for ((w, b), e4) in self.w_in.chunks_exact(d.input.max(1)).zip(self.b_in).zip(z.chunks_exact_mut(4)) {
+        for ((w, b), e4) in self
+            .w_in
+            .chunks_exact(d.input.max(1))
+            .zip(self.b_in)
+            .zip(z.chunks_exact_mut(4))
+        {
             let acc = dot4_f32([0.0; 4], w, xn);
             for ((e, a), bb) in e4.iter_mut().zip(acc).zip(b) {
                 *e = math::tanh(a + bb);
             }
         }
         let z_in: &[f32] = z;
-        let rows = self.w_gates.chunks_exact((e_len + d.hidden).max(1)).zip(self.b_gates);
+        let rows = self
+            .w_gates
+            .chunks_exact((e_len + d.hidden).max(1))
+            .zip(self.b_gates);
         for (((w, b), cj), hn) in rows.zip(c.iter_mut()).zip(h_new.iter_mut()) {
             let acc = dot4_f32([0.0; 4], w, z_in);
             let i = math::sigmoid(acc[0] + b[0]);
@@ -560,7 +615,12 @@ impl F32View<'_> {
         }
         let h_new: &[f32] = h_new;
         let mut ys = out.iter_mut();
-        let outs = self.w_out.chunks_exact(d.hidden.max(1)).zip(self.b_out).zip(self.output_std).zip(self.output_mean);
+        let outs = self
+            .w_out
+            .chunks_exact(d.hidden.max(1))
+            .zip(self.b_out)
+            .zip(self.output_std)
+            .zip(self.output_mean);
         for (((w, b), s), m) in outs {
             let acc = dot4_f32([0.0; 4], w, h_new);
             for r in 0..4 {
@@ -621,7 +681,10 @@ pub struct F32State<const Z: usize, const H: usize> {
 impl<const Z: usize, const H: usize> F32State<Z, H> {
     /// The zero state.
     pub const fn new() -> Self {
-        F32State { z: [0.0; Z], c: [0.0; H] }
+        F32State {
+            z: [0.0; Z],
+            c: [0.0; H],
+        }
     }
     /// Back to the zero state.
     pub fn reset(&mut self) {
@@ -635,8 +698,15 @@ impl<const Z: usize, const H: usize> Default for F32State<Z, H> {
     }
 }
 
-impl<const I: usize, const E: usize, const EB: usize, const H: usize, const Z: usize, const O: usize, const OB: usize>
-    F32Lstm<I, E, EB, H, Z, O, OB>
+impl<
+    const I: usize,
+    const E: usize,
+    const EB: usize,
+    const H: usize,
+    const Z: usize,
+    const O: usize,
+    const OB: usize,
+> F32Lstm<I, E, EB, H, Z, O, OB>
 {
     /// Compile-time shape check, evaluated by every [`Self::step`] instantiation.
     pub const SHAPE: () = {
@@ -646,7 +716,13 @@ impl<const I: usize, const E: usize, const EB: usize, const H: usize, const Z: u
         assert!(4 * OB >= O && 4 * OB < O + 4, "OB must be ceil(O / 4)");
     };
     /// Sizes.
-    pub const DIMS: F32Dims = F32Dims { input: I, embed_blocks: EB, hidden: H, output: O, output_blocks: OB };
+    pub const DIMS: F32Dims = F32Dims {
+        input: I,
+        embed_blocks: EB,
+        hidden: H,
+        output: O,
+        output_blocks: OB,
+    };
     /// Multiply-accumulates per step.
     pub const MACS: u32 = (E * I + 4 * H * Z + O * H) as u32;
 
@@ -674,7 +750,14 @@ impl<const I: usize, const E: usize, const EB: usize, const H: usize, const Z: u
         let mut xn = [0.0f32; I];
         let mut h_new = [0.0f32; H];
         let mut out = [0.0f32; O];
-        self.view().step(&mut state.z, &mut state.c, &mut xn, &mut h_new, input, &mut out);
+        self.view().step(
+            &mut state.z,
+            &mut state.c,
+            &mut xn,
+            &mut h_new,
+            input,
+            &mut out,
+        );
         out
     }
 }
