@@ -152,11 +152,11 @@ fn layers(m: &LstmModel, in_cols: usize) -> Layers {
         for g in 0..4 {
             let src = g * h + j;
             let row = &mut gates.0[4 * j + g];
-            for k in 0..e {
-                row[k] = m.w_ih[src * e + k] as f64;
+            for (dst, w) in row.iter_mut().zip(&m.w_ih[src * e..(src + 1) * e]) {
+                *dst = *w as f64;
             }
-            for k in 0..h {
-                row[ep + k] = m.w_hh[src * h + k] as f64;
+            for (dst, w) in row[ep..].iter_mut().zip(&m.w_hh[src * h..(src + 1) * h]) {
+                *dst = *w as f64;
             }
             // The LSTM's two biases summed in f32, as the f32 firmware step does.
             gates.1[4 * j + g] = (m.b_ih[src] + m.b_hh[src]) as f64;
@@ -469,6 +469,7 @@ pub struct F32Net {
     pub output_mean: Vec<[f32; 4]>,
 }
 
+#[allow(clippy::needless_range_loop)] // k indexes the columns of 4 rows at once
 fn interleave(rows: &[Vec<f64>]) -> Vec<[f32; 4]> {
     let cols = rows.first().map_or(0, Vec::len);
     let mut out = Vec::new();

@@ -248,7 +248,7 @@ impl<F: WeightFormat> QuantView<'_, F> {
             ("out_offset", d.output_blocks, self.out_offset.len()),
         ];
         let shape_ok =
-            d.hidden % 4 == 0 && d.input_quads * 4 >= d.input && d.output_blocks * 4 >= d.output;
+            d.hidden.is_multiple_of(4) && d.input_quads * 4 >= d.input && d.output_blocks * 4 >= d.output;
         if !shape_ok {
             return Some("dims");
         }
