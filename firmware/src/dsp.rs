@@ -131,40 +131,52 @@ pub mod portable {
 mod asm {
     use core::arch::asm;
 
-    /// SMLAD over 4 interleaved rows, two pairs per loop iteration. Registers are
-    /// pinned: LDM fills its list in ascending register order, so the weight
-    /// registers r4, r5, r8, r9 receive rows 0, 1, 2, 3.
-    #[inline(always)]
+    /// One quad (two pairs) of SMLAD over 4 interleaved rows, as asm text.
+    macro_rules! quad_i16 {
+        () => {
+            concat!(
+                "ldr {x}, [{xp}], #4\n",
+                "ldm {wp}!, {{r4, r5, r8, r9}}\n",
+                "smlad {a0}, r4, {x}, {a0}\n",
+                "smlad {a1}, r5, {x}, {a1}\n",
+                "smlad {a2}, r8, {x}, {a2}\n",
+                "smlad {a3}, r9, {x}, {a3}\n",
+                "ldr {x}, [{xp}], #4\n",
+                "ldm {wp}!, {{r4, r5, r8, r9}}\n",
+                "smlad {a0}, r4, {x}, {a0}\n",
+                "smlad {a1}, r5, {x}, {a1}\n",
+                "smlad {a2}, r8, {x}, {a2}\n",
+                "smlad {a3}, r9, {x}, {a3}\n",
+            )
+        };
+    }
+
+    /// SMLAD over 4 interleaved rows: two quads per loop iteration, then one more
+    /// when `n` is odd. Registers are pinned: LDM fills its list in ascending
+    /// register order, so the weight registers r4, r5, r8, r9 receive rows 0..4.
     ///
     /// # Safety
     /// `w` and `x` must be valid for `n > 0` quads.
-    pub unsafe fn dot4_i16(
-        acc: [i32; 4],
-        w: *const [[u32; 4]; 2],
-        x: *const [u32; 2],
-        n: usize,
-    ) -> [i32; 4] {
+    #[inline(always)]
+    pub unsafe fn dot4_i16(acc: [i32; 4], w: *const [[u32; 4]; 2], x: *const [u32; 2], n: usize) -> [i32; 4] {
         let [mut a0, mut a1, mut a2, mut a3] = acc;
-        // SAFETY (caller: w, x valid for n quads): the loop reads exactly 2 * n words of `x` and 8 * n words of `w`
-        // (n iterations of 2 pairs, 0 < n <= both slices' lengths by the caller);
-        // it writes only the declared registers and the flags.
+        // SAFETY (caller: w, x valid for n quads): the loops read exactly 2 * n words
+        // of `x` and 8 * n words of `w` (n / 2 iterations of 2 quads, then n % 2
+        // quads); they write only the declared registers and the flags.
         unsafe {
             asm!(
+                "lsrs {n2}, {n}, #1",
+                "beq 3f",
                 "2:",
-                "ldr {x}, [{xp}], #4",
-                "ldm {wp}!, {{r4, r5, r8, r9}}",
-                "smlad {a0}, r4, {x}, {a0}",
-                "smlad {a1}, r5, {x}, {a1}",
-                "smlad {a2}, r8, {x}, {a2}",
-                "smlad {a3}, r9, {x}, {a3}",
-                "ldr {x}, [{xp}], #4",
-                "ldm {wp}!, {{r4, r5, r8, r9}}",
-                "smlad {a0}, r4, {x}, {a0}",
-                "smlad {a1}, r5, {x}, {a1}",
-                "smlad {a2}, r8, {x}, {a2}",
-                "smlad {a3}, r9, {x}, {a3}",
-                "subs {n}, {n}, #1",
+                quad_i16!(),
+                quad_i16!(),
+                "subs {n2}, {n2}, #1",
                 "bne 2b",
+                "3:",
+                "lsls {n}, {n}, #31",
+                "beq 4f",
+                quad_i16!(),
+                "4:",
                 a0 = inout(reg) a0,
                 a1 = inout(reg) a1,
                 a2 = inout(reg) a2,
@@ -173,6 +185,7 @@ mod asm {
                 xp = inout(reg) x => _,
                 wp = inout(reg) w => _,
                 n = inout(reg) n => _,
+                n2 = out(reg) _,
                 out("r4") _,
                 out("r5") _,
                 out("r8") _,
