@@ -158,7 +158,12 @@ mod asm {
     /// # Safety
     /// `w` and `x` must be valid for `n > 0` quads.
     #[inline(always)]
-    pub unsafe fn dot4_i16(acc: [i32; 4], w: *const [[u32; 4]; 2], x: *const [u32; 2], n: usize) -> [i32; 4] {
+    pub unsafe fn dot4_i16(
+        acc: [i32; 4],
+        w: *const [[u32; 4]; 2],
+        x: *const [u32; 2],
+        n: usize,
+    ) -> [i32; 4] {
         let [mut a0, mut a1, mut a2, mut a3] = acc;
         // SAFETY (caller: w, x valid for n quads): the loops read exactly 2 * n words
         // of `x` and 8 * n words of `w` (n / 2 iterations of 2 quads, then n % 2

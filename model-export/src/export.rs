@@ -1094,8 +1094,10 @@ pub mod cli {
         /// Steps of golden input in the self-check digest.
         #[arg(long, default_value_t = 1000)]
         pub self_check_steps: usize,
-        /// CSV log: print the per-output RMS of every precision against the f32
-        /// model (and against the targets) streamed over it.
+        /// CSV log (columns of the model's `paper` / `feedforward` preset for
+        /// `--joints`): print per output, for every precision streamed over it, the RMS
+        /// against the f32 firmware step and the compensated RMS against the targets
+        /// beside f32's.
         #[arg(long)]
         pub accuracy_log: Option<PathBuf>,
     }
@@ -1137,6 +1139,16 @@ pub mod cli {
                     a.seed,
                 );
                 m.preset = a.preset.clone();
+                // Feature names of the preset, when the sizes fit it.
+                let spec = match a.preset.as_str() {
+                    "paper" => Some(crate::nn::data::FeatureSpec::paper(&a.joints)),
+                    "feedforward" => Some(crate::nn::data::FeatureSpec::feedforward(&a.joints)),
+                    _ => None,
+                };
+                if let Some(spec) = spec.filter(|s| s.inputs.len() == i && s.targets.len() == o) {
+                    m.output_names = spec.output_names();
+                    m.input_names = spec.inputs;
+                }
                 Ok(m)
             }
         }
@@ -1202,22 +1214,27 @@ pub mod cli {
         );
         if let Some(log) = &a.accuracy_log {
             let table = crate::nn::data::Table::read(log)?;
-            let spec = crate::nn::data::FeatureSpec {
-                preset: m.preset.clone(),
-                inputs: m.input_names.clone(),
-                targets: vec![],
+            let spec = match m.preset.as_str() {
+                "paper" => crate::nn::data::FeatureSpec::paper(&a.joints),
+                "feedforward" => crate::nn::data::FeatureSpec::feedforward(&a.joints),
+                other => bail!(
+                    "--accuracy-log needs a `paper` or `feedforward` model (this one: `{other}`)"
+                ),
             };
-            let inputs: Vec<Vec<f32>> = {
-                let cols: Vec<&[f32]> = spec
-                    .inputs
-                    .iter()
-                    .map(|c| table.column(c))
-                    .collect::<Result<_>>()?;
-                (0..table.len())
-                    .map(|t| cols.iter().map(|c| c[t]).collect())
-                    .collect()
-            };
-            print!("{}", accuracy_markdown(&m, &inputs, None)?);
+            spec.check_model(&m)
+                .with_context(|| format!("{}", log.display()))?;
+            let seq = spec
+                .sequence(&table)
+                .with_context(|| format!("{}", log.display()))?;
+            println!(
+                "Accuracy on {} ({} steps, streamed from the zero state):\n",
+                log.display(),
+                seq.len()
+            );
+            print!(
+                "{}",
+                accuracy_markdown(&m, &seq.inputs, Some(&seq.targets))?
+            );
         }
         Ok(())
     }

@@ -7,7 +7,7 @@ use crate::model::{FeaturePreset, Precision};
 #[allow(unused_imports)]
 use crate::quant::{F32Lstm, F32State, I8Weights, I16Weights, QuantLstm, QuantState, Requant};
 /// SHA-256 (first 8 bytes) of everything below this line.
-pub const CONTENT_HASH: u64 = 0xde30b234db125cf6;
+pub const CONTENT_HASH: u64 = 0x13659be2a5bd10c1;
 /// Layout version of this file (`model_export::export::SCHEMA_VERSION`).
 pub const SCHEMA_VERSION: u32 = 1;
 /// Numeric precision of the network.
@@ -19,9 +19,9 @@ pub const INPUTS: usize = 3;
 /// Number of outputs.
 pub const OUTPUTS: usize = 1;
 /// Input feature names, in input order.
-pub const INPUT_NAMES: [&str; 3] = ["x0", "x1", "x2"];
+pub const INPUT_NAMES: [&str; 3] = ["tau_model_j4", "tau_meas_j4", "q_j4"];
 /// Output names, in output order.
-pub const OUTPUT_NAMES: [&str; 1] = ["y0"];
+pub const OUTPUT_NAMES: [&str; 1] = ["tau_meas_j4@+1"];
 /// Indices (0-based) of the compensated joints.
 pub const JOINT_INDICES: [usize; 1] = [4];
 /// Control (compensator) rate the network was trained for [Hz].

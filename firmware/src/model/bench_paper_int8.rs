@@ -7,7 +7,7 @@ use crate::model::{FeaturePreset, Precision};
 #[allow(unused_imports)]
 use crate::quant::{F32Lstm, F32State, I8Weights, I16Weights, QuantLstm, QuantState, Requant};
 /// SHA-256 (first 8 bytes) of everything below this line.
-pub const CONTENT_HASH: u64 = 0xf0021cc83f6aa6b1;
+pub const CONTENT_HASH: u64 = 0x9f36c390215a095e;
 /// Layout version of this file (`model_export::export::SCHEMA_VERSION`).
 pub const SCHEMA_VERSION: u32 = 1;
 /// Numeric precision of the network.
@@ -19,9 +19,9 @@ pub const INPUTS: usize = 9;
 /// Number of outputs.
 pub const OUTPUTS: usize = 3;
 /// Input feature names, in input order.
-pub const INPUT_NAMES: [&str; 9] = ["x0", "x1", "x2", "x3", "x4", "x5", "x6", "x7", "x8"];
+pub const INPUT_NAMES: [&str; 9] = ["tau_model_j3", "tau_model_j4", "tau_model_j5", "tau_meas_j3", "tau_meas_j4", "tau_meas_j5", "q_j3", "q_j4", "q_j5"];
 /// Output names, in output order.
-pub const OUTPUT_NAMES: [&str; 3] = ["y0", "y1", "y2"];
+pub const OUTPUT_NAMES: [&str; 3] = ["tau_meas_j3@+1", "tau_meas_j4@+1", "tau_meas_j5@+1"];
 /// Indices (0-based) of the compensated joints.
 pub const JOINT_INDICES: [usize; 3] = [3, 4, 5];
 /// Control (compensator) rate the network was trained for [Hz].

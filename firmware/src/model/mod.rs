@@ -9,6 +9,28 @@
 //! schema, or whose network does not take the feature layout its preset and joints
 //! name, does not compile.
 //!
+//! ```
+//! use firmware::model::default;
+//! // The default model: the paper's preset for 3 joints, 9 inputs -> 3 outputs.
+//! let mut state = default::State::new();
+//! let y: [f32; default::OUTPUTS] = default::NETWORK.step(&mut state, &[0.0; default::INPUTS]);
+//! assert!(y.iter().all(|v| v.is_finite()));
+//! ```
+//!
+//! A network fed another feature layout does not compile:
+//!
+//! ```compile_fail
+//! use firmware::model::default;
+//! let mut state = default::State::new();
+//! let _ = default::NETWORK.step(&mut state, &[0.0f32; 8]); // 8 features, the model takes 9
+//! ```
+//!
+//! ```compile_fail
+//! // What `check_model!` asserts for every compiled-in model: the paper preset for 3
+//! // joints needs 9 inputs and 3 outputs.
+//! const _: () = assert!(firmware::model::FeaturePreset::Paper.fits(3, 8, 3));
+//! ```
+//!
 //! The other modules are fixed models for the bit-exact suites (`golden_*`, small,
 //! with odd sizes that exercise the padding) and the cycle benchmarks (`bench_*`:
 //! the paper's 9 -> 64 -> LSTM 64 -> 3 and the per-joint 3 -> 16 -> LSTM 16 -> 1,

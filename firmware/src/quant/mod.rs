@@ -247,8 +247,9 @@ impl<F: WeightFormat> QuantView<'_, F> {
             ("out_scale", d.output_blocks, self.out_scale.len()),
             ("out_offset", d.output_blocks, self.out_offset.len()),
         ];
-        let shape_ok =
-            d.hidden.is_multiple_of(4) && d.input_quads * 4 >= d.input && d.output_blocks * 4 >= d.output;
+        let shape_ok = d.hidden.is_multiple_of(4)
+            && d.input_quads * 4 >= d.input
+            && d.output_blocks * 4 >= d.output;
         if !shape_ok {
             return Some("dims");
         }
