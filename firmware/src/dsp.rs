@@ -96,6 +96,29 @@ pub fn dot4_i8(acc: [i32; 4], w: &[[u32; 4]], x: &[[u32; 2]]) -> [i32; 4] {
     }
 }
 
+/// Four-row f32 dot products, each row summed left to right with a separate multiply
+/// and add (IEEE single, round to nearest; the bits of the portable twin):
+/// `acc[r] + w[0][r]*x[0] + w[1][r]*x[1] + ...` over `min(w.len(), x.len())` columns.
+/// `w[k]` holds column `k` of the 4 rows. On the Cortex-M4F: VLDM + VMUL + VADD
+/// (rustc emits VLDR per value); the FPU registers it uses are saved and restored
+/// inside the assembly (stable Rust rejects the `sreg` operand class here).
+#[inline(always)]
+pub fn dot4_f32(acc: [f32; 4], w: &[[f32; 4]], x: &[f32]) -> [f32; 4] {
+    let n = w.len().min(x.len());
+    if n == 0 {
+        return acc;
+    }
+    #[cfg(fw_dsp_asm)]
+    {
+        // SAFETY: 0 < n <= w.len(), x.len().
+        unsafe { asm::dot4_f32(acc, w.as_ptr(), x.as_ptr(), n) }
+    }
+    #[cfg(not(fw_dsp_asm))]
+    {
+        portable::dot4_f32(acc, w, x)
+    }
+}
+
 /// The portable twins (always compiled, so the host tests them and the target can
 /// compare).
 pub mod portable {
@@ -110,6 +133,18 @@ pub mod portable {
                     *a = smlad(*a, wr, xp);
                 }
             }
+        }
+        acc
+    }
+
+    /// Portable [`super::dot4_f32`].
+    #[inline(always)]
+    pub fn dot4_f32(mut acc: [f32; 4], w: &[[f32; 4]], x: &[f32]) -> [f32; 4] {
+        for (wk, xk) in w.iter().zip(x.iter()) {
+            acc[0] += wk[0] * xk;
+            acc[1] += wk[1] * xk;
+            acc[2] += wk[2] * xk;
+            acc[3] += wk[3] * xk;
         }
         acc
     }
@@ -199,6 +234,80 @@ mod asm {
             );
         }
         [a0, a1, a2, a3]
+    }
+
+    /// One column of the f32 kernel: x in s20, weights s22-s25, temporaries s30/s31.
+    macro_rules! col_f32 {
+        () => {
+            concat!(
+                "vldmia {xp}!, {{s20}}\n",
+                "vldmia {wp}!, {{s22-s25}}\n",
+                "vmul.f32 s30, s22, s20\n",
+                "vadd.f32 s16, s16, s30\n",
+                "vmul.f32 s31, s23, s20\n",
+                "vadd.f32 s17, s17, s31\n",
+                "vmul.f32 s30, s24, s20\n",
+                "vadd.f32 s18, s18, s30\n",
+                "vmul.f32 s31, s25, s20\n",
+                "vadd.f32 s19, s19, s31\n",
+            )
+        };
+    }
+
+    /// f32 over 4 interleaved rows: two columns per loop iteration (one VLDM of 2
+    /// inputs, one of 8 weights), then one more when `n` is odd. Uses s16-s31, saved
+    /// and restored with VPUSH/VPOP inside the block.
+    ///
+    /// # Safety
+    /// `w` and `x` must be valid for `n > 0` columns.
+    #[inline(always)]
+    pub unsafe fn dot4_f32(acc: [f32; 4], w: *const [f32; 4], x: *const f32, n: usize) -> [f32; 4] {
+        let mut a = acc;
+        // SAFETY (caller: w, x valid for n columns): reads n floats of `x`, 4 * n of
+        // `w`, reads and writes the 4 floats of `a`; every FPU register it writes is
+        // pushed before and popped after, so the compiler's registers are untouched.
+        unsafe {
+            asm!(
+                "vpush {{s16-s31}}",
+                "vldmia {ap}, {{s16-s19}}",
+                "lsrs {n2}, {n}, #1",
+                "beq 3f",
+                "2:",
+                "vldmia {xp}!, {{s20-s21}}",
+                "vldmia {wp}!, {{s22-s29}}",
+                "vmul.f32 s30, s22, s20",
+                "vadd.f32 s16, s16, s30",
+                "vmul.f32 s31, s23, s20",
+                "vadd.f32 s17, s17, s31",
+                "vmul.f32 s30, s24, s20",
+                "vadd.f32 s18, s18, s30",
+                "vmul.f32 s31, s25, s20",
+                "vadd.f32 s19, s19, s31",
+                "vmul.f32 s30, s26, s21",
+                "vadd.f32 s16, s16, s30",
+                "vmul.f32 s31, s27, s21",
+                "vadd.f32 s17, s17, s31",
+                "vmul.f32 s30, s28, s21",
+                "vadd.f32 s18, s18, s30",
+                "vmul.f32 s31, s29, s21",
+                "vadd.f32 s19, s19, s31",
+                "subs {n2}, {n2}, #1",
+                "bne 2b",
+                "3:",
+                "lsls {n}, {n}, #31",
+                "beq 4f",
+                col_f32!(),
+                "4:",
+                "vstmia {ap}, {{s16-s19}}",
+                "vpop {{s16-s31}}",
+                ap = in(reg) a.as_mut_ptr(),
+                xp = inout(reg) x => _,
+                wp = inout(reg) w => _,
+                n = inout(reg) n => _,
+                n2 = out(reg) _,
+            );
+        }
+        a
     }
 
     /// SXTB16 + SMLAD over 4 interleaved rows, four columns per loop iteration.
@@ -331,6 +440,23 @@ mod tests {
                 }
             }
             assert_eq!(got[r], s, "row {r}");
+        }
+    }
+
+    #[test]
+    fn dot4_f32_sums_each_row_left_to_right() {
+        let w: [[f32; 4]; 5] = core::array::from_fn(|k| {
+            core::array::from_fn(|r| crate::golden::unit(word((k * 4 + r) as u32)) - 0.5)
+        });
+        let x: [f32; 5] =
+            core::array::from_fn(|k| 3.0 * crate::golden::unit(word(300 + k as u32)) - 1.5);
+        let got = dot4_f32([0.25, 0.0, -1.0, 2.0], &w, &x);
+        for r in 0..4 {
+            let mut s = [0.25f32, 0.0, -1.0, 2.0][r];
+            for k in 0..5 {
+                s += w[k][r] * x[k];
+            }
+            assert_eq!(got[r].to_bits(), s.to_bits(), "row {r}");
         }
     }
 

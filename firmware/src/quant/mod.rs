@@ -525,16 +525,10 @@ pub struct F32View<'a> {
     pub output_mean: &'a [[f32; 4]],
 }
 
-/// Four rows at once, each summed left to right: `acc[r] + sum_k w[k][r] * x[k]`.
+/// Four rows at once, each summed left to right (`dsp::dot4_f32`).
 #[inline(always)]
-fn dot4_f32(mut acc: [f32; 4], w: &[[f32; 4]], x: &[f32]) -> [f32; 4] {
-    for (wk, xk) in w.iter().zip(x.iter()) {
-        acc[0] += wk[0] * xk;
-        acc[1] += wk[1] * xk;
-        acc[2] += wk[2] * xk;
-        acc[3] += wk[3] * xk;
-    }
-    acc
+fn dot4_f32(acc: [f32; 4], w: &[[f32; 4]], x: &[f32]) -> [f32; 4] {
+    dsp::dot4_f32(acc, w, x)
 }
 
 impl F32View<'_> {
