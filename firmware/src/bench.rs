@@ -39,6 +39,11 @@ pub fn visit_all<V: Visitor>(v: &mut V) {
     v.visit::<Dot64>();
     v.visit::<LstmGateActivations64>();
     v.visit::<JointTrig6>();
+    v.visit::<LstmPaperF32>();
+    v.visit::<LstmPaperInt16>();
+    v.visit::<LstmPaperInt8>();
+    v.visit::<LstmJointInt16>();
+    v.visit::<Dynamics6F32>();
 }
 
 /// Number of registered workloads.
@@ -171,6 +176,90 @@ impl Workload for JointTrig6 {
     }
 }
 
+/// One streaming step of a compiled-in model (`crate::model`) per tick, on golden
+/// inputs that change every tick.
+macro_rules! model_workload {
+    ($(#[$doc:meta])* $ty:ident, $name:literal, $m:ident) => {
+        $(#[$doc])*
+        pub struct $ty {
+            state: crate::model::$m::State,
+            t: usize,
+            out: f32,
+        }
+
+        impl Workload for $ty {
+            const NAME: &'static str = $name;
+            const MACS: u32 = crate::model::$m::Network::MACS;
+
+            fn new() -> Self {
+                $ty { state: crate::model::$m::State::new(), t: 0, out: 0.0 }
+            }
+
+            #[inline(never)]
+            fn tick(&mut self) {
+                let x = crate::quant::golden::inputs::<{ crate::model::$m::INPUTS }>(self.t);
+                let y = crate::model::$m::NETWORK.step(&mut self.state, &x);
+                self.out = y[0];
+                self.t += 1;
+            }
+
+            fn output(&self) -> f32 {
+                self.out
+            }
+        }
+    };
+}
+
+model_workload!(
+    /// The paper's network (9 -> 64 -> LSTM 64 -> 3), f32 (`quant::F32Lstm`).
+    LstmPaperF32, "lstm_paper_f32", bench_paper_f32
+);
+model_workload!(
+    /// The paper's network, int16 weights and activations (`quant::QuantLstm`, SMLAD).
+    LstmPaperInt16, "lstm_paper_int16", bench_paper_int16
+);
+model_workload!(
+    /// The paper's network, int8 weights, int16 activations (SXTB16 + SMLAD).
+    LstmPaperInt8, "lstm_paper_int8", bench_paper_int8
+);
+model_workload!(
+    /// The per-joint network (3 -> 16 -> LSTM 16 -> 1), int16.
+    LstmJointInt16, "lstm_joint_int16", bench_joint_int16
+);
+
+/// The 6-DoF rigid-body model (`dynamics::RigidBodyModel<6>::torques`, f32) with the
+/// nominal parameters of the default robot exported with the paper benchmark model.
+pub struct Dynamics6F32 {
+    q: [f32; 6],
+    out: f32,
+}
+
+impl Workload for Dynamics6F32 {
+    const NAME: &'static str = "dynamics6_f32";
+
+    fn new() -> Self {
+        Dynamics6F32 {
+            q: core::array::from_fn(|k| 0.3 * k as f32 - 0.7),
+            out: 0.0,
+        }
+    }
+
+    #[inline(never)]
+    fn tick(&mut self) {
+        let qd = core::array::from_fn(|k| 0.5 - 0.2 * k as f32);
+        let qdd = core::array::from_fn(|k| 1.0 - 0.3 * k as f32);
+        let tau = crate::model::bench_paper_f32::DYNAMICS.torques(&self.q, &qd, &qdd);
+        self.out = tau[1];
+        for q in self.q.iter_mut() {
+            *q += PHASE_STEP;
+        }
+    }
+
+    fn output(&self) -> f32 {
+        self.out
+    }
+}
+
 /// Per-tick cycle statistics (min, max, mean) over a reporting window; the board
 /// binary keeps one per workload and reports it over defmt.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -229,7 +318,7 @@ mod tests {
     use super::*;
 
     struct RunAll {
-        names: [&'static str; 8],
+        names: [&'static str; 16],
         n: usize,
     }
     impl Visitor for RunAll {
@@ -255,7 +344,7 @@ mod tests {
     #[test]
     fn registered_workloads_run_and_have_unique_names() {
         let mut v = RunAll {
-            names: [""; 8],
+            names: [""; 16],
             n: 0,
         };
         visit_all(&mut v);

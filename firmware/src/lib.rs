@@ -10,8 +10,11 @@
 pub mod bench;
 pub mod control;
 pub mod drivers;
+pub mod dsp;
 pub mod dynamics;
 pub mod golden;
 pub mod log;
 pub mod lstm;
 pub mod math;
+pub mod model;
+pub mod quant;

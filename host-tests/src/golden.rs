@@ -2,6 +2,8 @@
 use crate::compare::Record;
 use anyhow::{Result, bail};
 use firmware::golden::{self, MathFn};
+use firmware::model::GoldenModel;
+use firmware::quant::golden::STEPS;
 
 /// One `@suite` block of the QEMU report.
 #[derive(Debug, Default)]
@@ -122,6 +124,39 @@ pub fn host_lstm() -> Vec<Record> {
     out
 }
 
+/// The host's computation of a quantised-kernel suite (`lstm_f32`, `lstm_int16`,
+/// `lstm_int8`): the golden model streamed over `firmware::quant::golden::STEPS` steps.
+pub fn host_quant(g: GoldenModel) -> Vec<Record> {
+    let n = g.outputs();
+    let mut out = Vec::with_capacity(STEPS * n);
+    g.stream(STEPS, &mut |t, y| {
+        for (k, v) in y.iter().enumerate() {
+            out.push(Record::new(g.name(), t * n + k, t as u32, v.to_bits()));
+        }
+    });
+    out
+}
+
+/// Checks a quantised-kernel suite's records against the exporter's self-check digest
+/// (`SELF_CHECK_FNV` over the first `SELF_CHECK_STEPS` steps, written by
+/// `model-export export`): the target computes what the exporter reported.
+pub fn check_exporter_digest(g: GoldenModel, records: &[Record]) -> Result<()> {
+    let (steps, want) = g.self_check();
+    let n = g.outputs();
+    let mut d = firmware::quant::golden::Digest::default();
+    for r in records.iter().take(steps * n) {
+        d.add(&[f32::from_bits(r.output_bits)]);
+    }
+    if records.len() < steps * n || d.0 != want {
+        bail!(
+            "{}: the target's first {steps} steps give digest {:#018x}, the exporter wrote {want:#018x}",
+            g.name(),
+            d.0
+        );
+    }
+    Ok(())
+}
+
 /// Outcome of comparing one suite.
 #[derive(Debug)]
 pub struct SuiteCheck {
@@ -134,12 +169,19 @@ pub struct SuiteCheck {
 /// Compares every suite of a QEMU report with the host's computation.
 pub fn check_report(report: &str) -> Result<Vec<SuiteCheck>> {
     let suites = parse_report(report)?;
-    let host: [(&'static str, Vec<Record>); 4] = [
+    let mut host: Vec<(&'static str, Vec<Record>)> = vec![
         ("math", host_math()),
         ("dot", host_dot()),
         ("dynamics", host_dynamics()),
         ("lstm", host_lstm()),
     ];
+    for g in GoldenModel::ALL {
+        host.push((g.name(), host_quant(g)));
+        let Some(suite) = suites.iter().find(|s| s.name == g.name()) else {
+            bail!("the QEMU report has no `{}` suite", g.name());
+        };
+        check_exporter_digest(g, &suite.records)?;
+    }
     let mut checks = Vec::new();
     for (name, host_records) in host {
         let Some(suite) = suites.iter().find(|s| s.name == name) else {

@@ -59,6 +59,11 @@ pub enum Command {
     Simulate(crate::sim::cli::SimulateArgs),
     /// Identify rigid body + friction on simulated logs and print the per-joint uncompensated RMS table.
     PlantReport(crate::sim::cli::PlantReportArgs),
+    /// Quantise a model (f32 / int16 / int8) and write ONE Rust source file of fixed-size
+    /// arrays in the firmware kernels' layout (with normalisation, feature preset,
+    /// joints, control rate, dynamics, schema version, content hash and a self-check
+    /// digest); optionally report accuracy per precision on a CSV log.
+    Export(crate::export::cli::ExportArgs),
 }
 
 /// Which columns the network reads and predicts.
@@ -379,6 +384,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Import(a) => import_cmd(a),
         Command::Simulate(args) => crate::sim::cli::run_simulate(&args),
         Command::PlantReport(args) => crate::sim::cli::run_plant_report(&args),
+        Command::Export(a) => crate::export::cli::run(a),
     }
 }
 

@@ -7,6 +7,7 @@ pub mod base;
 pub mod cli;
 pub mod dynamics;
 pub mod excite;
+pub mod export;
 pub mod identify;
 pub mod logs;
 pub mod model_file;

@@ -9,6 +9,8 @@ use core::fmt::Write;
 use cortex_m_rt::{ExceptionFrame, entry, exception};
 use cortex_m_semihosting::{debug, hio};
 use firmware::golden::{self, MathFn};
+use firmware::model::GoldenModel;
+use firmware::quant::golden::STEPS;
 
 /// Line-buffered semihosting writer: one host call per ~1 KiB, not per line.
 struct Report {
@@ -110,6 +112,18 @@ fn main() -> ! {
         }
     });
     out.line(format_args!("@end lstm"));
+
+    // Quantised kernels (firmware::quant): 10 000 streaming steps of each golden model.
+    for g in GoldenModel::ALL {
+        let n = g.outputs();
+        out.line(format_args!("@suite {} {}", g.name(), STEPS * n));
+        g.stream(STEPS, &mut |t, y| {
+            for (k, v) in y.iter().enumerate() {
+                out.line(format_args!("{} {} {:08x} {:08x}", g.name(), t * n + k, t as u32, v.to_bits()));
+            }
+        });
+        out.line(format_args!("@end {}", g.name()));
+    }
 
     out.line(format_args!("@pass"));
     out.flush();

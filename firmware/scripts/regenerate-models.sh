@@ -1,0 +1,16 @@
+#!/bin/sh
+# Regenerates the committed model files in firmware/src/model/ with `model-export export`
+# (seeded networks: the trained demo model replaces default_model.rs later).
+# Usage: firmware/scripts/regenerate-models.sh ROBOT.toml   (the default robot's DH TOML)
+set -eu
+ROBOT=${1:?usage: $0 ROBOT.toml}
+cd "$(dirname "$0")/../.."
+cargo build -q -p model-export
+ME=${CARGO_TARGET_DIR:-target}/debug/model-export
+D=firmware/src/model
+$ME export --dims 9,64,64,3 --seed 1 --precision int16 --robot "$ROBOT" --budgets host-tests/budgets.toml --out $D/default_model.rs
+for p in f32 int16 int8; do
+  $ME export --dims 5,12,8,3 --seed 7 --preset custom --joints 0,1,2 --precision $p --self-check-steps 10000 --out $D/golden_$p.rs
+  $ME export --dims 9,64,64,3 --seed 2 --precision $p --robot "$ROBOT" --out $D/bench_paper_$p.rs
+done
+$ME export --dims 3,16,16,1 --seed 3 --joints 4 --precision int16 --out $D/bench_joint_int16.rs

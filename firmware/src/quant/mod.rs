@@ -1,0 +1,758 @@
+//! Quantised LSTM kernels: the streaming step of the compensation network
+//! (`input layer (tanh) -> LSTM -> output layer`, the architecture of `crate::lstm`)
+//! in three precisions, with weights pre-arranged by the exporter
+//! (`model-export export`) for the Cortex-M4:
+//!
+//! | precision | weights | activations | accumulator | kernel |
+//! |---|---|---|---|---|
+//! | [`F32Lstm`] | f32 | f32 | f32, sequential per row | 4 rows per pass, libm sigmoid/tanh |
+//! | [`QuantLstm<I16Weights>`] | int16, per-row scale | int16 | i32 (SMLAD), i64 requantisation | `dsp::dot4_i16` |
+//! | [`QuantLstm<I8Weights>`] | int8, per-row scale | int16 | i32 (SXTB16 + SMLAD), i64 requantisation | `dsp::dot4_i8` |
+//!
+//! # Integer scheme (in the spirit of CMSIS-NN / TFLM int16x8 LSTM)
+//!
+//! Q formats (`Qm.n`: m integer bits, n fraction bits, sign bit not counted):
+//!
+//! | quantity | format | range |
+//! |---|---|---|
+//! | normalised input `x_n = (x - mean) / std` | Q3.12 | +-8 |
+//! | input-layer output `e = tanh(.)` | Q0.15 | +-1 |
+//! | hidden state `h` | Q0.15 | +-1 |
+//! | gate pre-activations (input layer too) | Q3.12 | +-8 (sigmoid/tanh saturate beyond) |
+//! | gates `i, f, o` (sigmoid) and `g` (tanh) | Q0.15 | 0..1, +-1 |
+//! | cell state `c` | Q4.11 (power-of-two scale 2^-11) | +-16 |
+//!
+//! Every weight row `r` has its own scale `s_r` (`w ~ s_r * w_q`): `max|w| / 32767`
+//! (int16) or `/ 127` (int8), enlarged by the exporter where needed so that the worst
+//! case `sum_k |w_q[r][k]| * 32768 + |b_q[r]| < 2^31`: no accumulator can overflow
+//! for any input (int8 rows of up to 511 columns always fit). The bias is folded into
+//! the accumulator's scale (`b_q = round(b / (s_r * 2^-n_x))`), the input
+//! normalisation into a per-feature multiplier (`x_q = round((x - mean) * 2^12 / std)`,
+//! the only f32 arithmetic besides the output), the LSTM's two PyTorch biases into one.
+//! A row's accumulator goes to the Q3.12 pre-activation by a fixed-point multiplier:
+//! `pre = sat16(round(round(acc * m_r / 2^32) / 2^s))`, `m_r` in `[2^30, 2^31)`, `s` in 0..=31.
+//! The cell update is `c' = sat16(round(f*c >> 15) + round(i*g >> 19))`, `h' =
+//! round(o * tanh(sat16(2c')) >> 15)`. The output row is `y = acc * scale_o + offset_o`
+//! in f32 (`scale_o` holds `s_o * 2^-15 * output_std`, `offset_o` the bias and the
+//! output mean). Activations: [`act`] (table + interpolation, no division).
+//!
+//! # Layout
+//!
+//! Rows come in blocks of 4, columns in quads of 4 (padded with zero weights and
+//! zero inputs by the exporter). The LSTM's gate rows are grouped by cell: block `j`
+//! holds the rows `i_j, f_j, g_j, o_j`, so one 4-row pass gives all gates of cell `j`.
+//! The LSTM's input is the packed vector `z = [e; h]` (input layer output, then the
+//! hidden state) and one weight matrix `[W_ih | W_hh]` with one scale per row.
+//! Packed int16 activations are `[[u32; 2]; Q]`: quad `q`, word `0` = columns
+//! `4q, 4q+1`, word `1` = `4q+2, 4q+3` (`dsp::pack`).
+//!
+//! Shapes are const generics; [`QuantLstm::SHAPE`] and [`F32Lstm::SHAPE`] are
+//! compile-time assertions (a model whose sizes do not fit together does not compile).
+//! All arithmetic lives in shape-erased kernels ([`QuantView::step`],
+//! [`F32View::step`]) that the fixed-size networks call on their own arrays without
+//! copying; the exporter, whose sizes are only known at run time, runs exactly this
+//! code on its own vectors, so host and target compute the same bits.
+
+pub mod act;
+pub mod golden;
+
+use crate::dsp;
+use crate::math;
+
+/// Fraction bits of the normalised input (Q3.12).
+pub const INPUT_FRAC_BITS: u32 = 12;
+/// Fraction bits of gate and layer pre-activations (Q3.12).
+pub const PRE_FRAC_BITS: u32 = 12;
+/// Fraction bits of `e`, `h` and the gates (Q0.15).
+pub const ACT_FRAC_BITS: u32 = 15;
+/// Fraction bits of the cell state (Q4.11).
+pub const CELL_FRAC_BITS: u32 = 11;
+
+/// A weight storage format of the integer kernels: how one quad of 4 columns of a
+/// 4-row block is stored and multiplied.
+pub trait WeightFormat {
+    /// One quad of 4 columns of a 4-row block.
+    type Quad: Copy + core::fmt::Debug + PartialEq;
+    /// Name used in reports and generated files (`int16`, `int8`).
+    const NAME: &'static str;
+    /// Largest weight magnitude of the format.
+    const MAX_WEIGHT: i32;
+    /// `acc[r] + sum_k w[r][k] * x[k]` for the 4 rows of a block.
+    fn dot4(acc: [i32; 4], w: &[Self::Quad], x: &[[u32; 2]]) -> [i32; 4];
+    /// Packs `w[r][k]` (4 rows x 4 columns, each within `MAX_WEIGHT`).
+    fn pack(w: [[i32; 4]; 4]) -> Self::Quad;
+}
+
+/// int16 weights: per quad, the two packed pairs of the 4 rows (`[pair][row]`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct I16Weights;
+
+impl WeightFormat for I16Weights {
+    type Quad = [[u32; 4]; 2];
+    const NAME: &'static str = "int16";
+    const MAX_WEIGHT: i32 = 32767;
+    #[inline(always)]
+    fn dot4(acc: [i32; 4], w: &[Self::Quad], x: &[[u32; 2]]) -> [i32; 4] {
+        dsp::dot4_i16(acc, w, x)
+    }
+    fn pack(w: [[i32; 4]; 4]) -> Self::Quad {
+        let p = |r: usize, k: usize| dsp::pack(w[r][k] as i16, w[r][k + 1] as i16);
+        [
+            [p(0, 0), p(1, 0), p(2, 0), p(3, 0)],
+            [p(0, 2), p(1, 2), p(2, 2), p(3, 2)],
+        ]
+    }
+}
+
+/// int8 weights: per quad, one word of four int8 weights per row (`dsp::pack_i8`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct I8Weights;
+
+impl WeightFormat for I8Weights {
+    type Quad = [u32; 4];
+    const NAME: &'static str = "int8";
+    const MAX_WEIGHT: i32 = 127;
+    #[inline(always)]
+    fn dot4(acc: [i32; 4], w: &[Self::Quad], x: &[[u32; 2]]) -> [i32; 4] {
+        dsp::dot4_i8(acc, w, x)
+    }
+    fn pack(w: [[i32; 4]; 4]) -> Self::Quad {
+        w.map(|row| dsp::pack_i8(row.map(|v| v as i8)))
+    }
+}
+
+/// Fixed-point requantisation of one row: `M = mult * 2^-(32 + shift)`, `mult` in
+/// `[2^30, 2^31)`, `shift` in `0..=31` (so `2^-64 <= M < 2^-1`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Requant {
+    /// Multiplier (Q31 mantissa).
+    pub mult: i32,
+    /// Right shift after the rounded high word, `0..=31`.
+    pub shift: u8,
+}
+
+impl Requant {
+    /// A zero row (padding): maps every accumulator to 0.
+    pub const ZERO: Requant = Requant { mult: 0, shift: 0 };
+
+    /// `sat16(rshift_round(hi32_round(acc * mult), shift))`: the rounded high word of
+    /// the 64-bit product (SMMULR), then a rounding right shift, then saturation.
+    #[inline(always)]
+    pub fn apply(self, acc: i32) -> i16 {
+        let hi = (((acc as i64) * (self.mult as i64) + (1i64 << 31)) >> 32) as i32;
+        let s = (self.shift & 31) as u32;
+        let round = ((1u32 << s) >> 1) as i32;
+        sat16(hi.saturating_add(round) >> s)
+    }
+}
+
+#[inline(always)]
+fn sat16(v: i32) -> i16 {
+    if v > i16::MAX as i32 {
+        i16::MAX
+    } else if v < i16::MIN as i32 {
+        i16::MIN
+    } else {
+        v as i16
+    }
+}
+
+/// Rounds half away from zero and saturates to int16 (NaN gives 0).
+#[inline(always)]
+pub fn quantise_i16(v: f32) -> i16 {
+    let r = if v >= 0.0 { v + 0.5 } else { v - 0.5 };
+    r as i16
+}
+
+/// Writes element `k` (0..4) of a packed quad.
+#[inline(always)]
+fn put(q: &mut [u32; 2], k: usize, v: i16) {
+    let word = &mut q[(k >> 1) & 1];
+    if k & 1 == 0 {
+        *word = (*word & 0xffff_0000) | (v as u16 as u32);
+    } else {
+        *word = (*word & 0x0000_ffff) | ((v as u16 as u32) << 16);
+    }
+}
+
+/// Sizes of an integer network (all in elements, blocks of 4 rows, quads of 4 columns).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct QuantDims {
+    /// Inputs `I`.
+    pub input: usize,
+    /// Input quads `IQ = ceil(I / 4)`.
+    pub input_quads: usize,
+    /// Input-layer blocks `EB` (`E = 4 * EB`).
+    pub embed_blocks: usize,
+    /// Cells `H` (a multiple of 4; `HQ = H / 4`).
+    pub hidden: usize,
+    /// Outputs `O`.
+    pub output: usize,
+    /// Output blocks `OB = ceil(O / 4)`.
+    pub output_blocks: usize,
+}
+
+impl QuantDims {
+    /// Quads of `[e; h]`.
+    pub const fn z_quads(&self) -> usize {
+        self.embed_blocks + self.hidden / 4
+    }
+}
+
+/// An integer network of run-time sizes borrowing flat arrays in the kernel layout.
+#[derive(Clone, Copy, Debug)]
+pub struct QuantView<'a, F: WeightFormat> {
+    /// Sizes.
+    pub dims: QuantDims,
+    /// `[I]` input mean.
+    pub input_mean: &'a [f32],
+    /// `[I]` `2^12 / std`.
+    pub input_scale: &'a [f32],
+    /// `[EB * IQ]` input layer.
+    pub in_w: &'a [F::Quad],
+    /// `[EB]` input layer bias (accumulator scale).
+    pub in_bias: &'a [[i32; 4]],
+    /// `[EB]` input layer requantisation.
+    pub in_requant: &'a [[Requant; 4]],
+    /// `[H * ZQ]` gates.
+    pub gate_w: &'a [F::Quad],
+    /// `[H]` gate bias.
+    pub gate_bias: &'a [[i32; 4]],
+    /// `[H]` gate requantisation.
+    pub gate_requant: &'a [[Requant; 4]],
+    /// `[OB * HQ]` output layer.
+    pub out_w: &'a [F::Quad],
+    /// `[OB]` output scale.
+    pub out_scale: &'a [[f32; 4]],
+    /// `[OB]` output offset.
+    pub out_offset: &'a [[f32; 4]],
+}
+
+impl<F: WeightFormat> QuantView<'_, F> {
+    /// Whether every array has the length `dims` asks for (`None`) or the first that
+    /// does not (its name).
+    pub fn check(&self) -> Option<&'static str> {
+        let d = self.dims;
+        let zq = d.z_quads();
+        let lens: [(&'static str, usize, usize); 11] = [
+            ("input_mean", d.input, self.input_mean.len()),
+            ("input_scale", d.input, self.input_scale.len()),
+            ("in_w", d.embed_blocks * d.input_quads, self.in_w.len()),
+            ("in_bias", d.embed_blocks, self.in_bias.len()),
+            ("in_requant", d.embed_blocks, self.in_requant.len()),
+            ("gate_w", d.hidden * zq, self.gate_w.len()),
+            ("gate_bias", d.hidden, self.gate_bias.len()),
+            ("gate_requant", d.hidden, self.gate_requant.len()),
+            ("out_w", d.output_blocks * (d.hidden / 4), self.out_w.len()),
+            ("out_scale", d.output_blocks, self.out_scale.len()),
+            ("out_offset", d.output_blocks, self.out_offset.len()),
+        ];
+        let shape_ok = d.hidden.is_multiple_of(4)
+            && d.input_quads * 4 >= d.input
+            && d.output_blocks * 4 >= d.output;
+        if !shape_ok {
+            return Some("dims");
+        }
+        lens.iter().find(|(_, e, a)| e != a).map(|(n, _, _)| *n)
+    }
+
+    /// The kernel: one step. `z` (`ZQ` quads) and `c` (`H`) are the state, `xq`
+    /// (`IQ` quads) and `h_new` (`HQ` quads) scratch, `input` (`I`) and `out` (`O`).
+    /// Lengths are trusted (a mismatch gives a wrong result, never a panic).
+    #[inline(always)]
+    pub fn step(
+        &self,
+        z: &mut [[u32; 2]],
+        c: &mut [i16],
+        xq: &mut [[u32; 2]],
+        h_new: &mut [[u32; 2]],
+        input: &[f32],
+        out: &mut [f32],
+    ) {
+        let d = self.dims;
+        let iq = d.input_quads.max(1);
+        let zq = d.z_quads().max(1);
+        let hq = (d.hidden / 4).max(1);
+        // Input quantisation (f32, the only float arithmetic before the output).
+        for q in xq.iter_mut() {
+            *q = [0, 0];
+        }
+        for (k, ((x, m), s)) in input
+            .iter()
+            .zip(self.input_mean)
+            .zip(self.input_scale)
+            .enumerate()
+        {
+            if let Some(q) = xq.get_mut(k >> 2) {
+                put(q, k & 3, quantise_i16((x - m) * s));
+            }
+        }
+        // Input layer: e = tanh(pre), Q0.15, into the e part of z.
+        let blocks = self
+            .in_w
+            .chunks_exact(iq)
+            .zip(self.in_bias.iter().zip(self.in_requant));
+        for ((w, (b, rq)), zq_e) in blocks.zip(z.iter_mut()) {
+            let acc = F::dot4(*b, w, xq);
+            let e0 = act::tanh_q15(rq[0].apply(acc[0]));
+            let e1 = act::tanh_q15(rq[1].apply(acc[1]));
+            let e2 = act::tanh_q15(rq[2].apply(acc[2]));
+            let e3 = act::tanh_q15(rq[3].apply(acc[3]));
+            *zq_e = [dsp::pack(e0, e1), dsp::pack(e2, e3)];
+        }
+        // LSTM: one block per cell, gates i, f, g, o.
+        let z_in: &[[u32; 2]] = z;
+        let cells = self
+            .gate_w
+            .chunks_exact(zq)
+            .zip(self.gate_bias.iter().zip(self.gate_requant));
+        for (j, ((w, (b, rq)), cj)) in cells.zip(c.iter_mut()).enumerate() {
+            let acc = F::dot4(*b, w, z_in);
+            let i = act::sigmoid_q15(rq[0].apply(acc[0])) as i32;
+            let f = act::sigmoid_q15(rq[1].apply(acc[1])) as i32;
+            let g = act::tanh_q15(rq[2].apply(acc[2])) as i32;
+            let o = act::sigmoid_q15(rq[3].apply(acc[3])) as i32;
+            let fc = (f * (*cj as i32) + (1 << 14)) >> 15;
+            let ig = (i * g + (1 << 18)) >> 19;
+            *cj = sat16(fc + ig);
+            let tc = act::tanh_q15(sat16(2 * (*cj as i32))) as i32;
+            let h = ((o * tc + (1 << 14)) >> 15) as i16;
+            if let Some(q) = h_new.get_mut(j >> 2) {
+                put(q, j & 3, h);
+            }
+        }
+        if let Some(hz) = z.get_mut(d.embed_blocks..) {
+            for (dst, src) in hz.iter_mut().zip(h_new.iter()) {
+                *dst = *src;
+            }
+        }
+        // Output layer, f32 de-normalisation.
+        let mut rows = out.iter_mut();
+        let outs = self
+            .out_w
+            .chunks_exact(hq)
+            .zip(self.out_scale.iter().zip(self.out_offset));
+        for (w, (s, off)) in outs {
+            let acc = F::dot4([0; 4], w, h_new);
+            for r in 0..4 {
+                if let Some(y) = rows.next() {
+                    *y = acc[r] as f32 * s[r] + off[r];
+                }
+            }
+        }
+    }
+}
+
+/// An integer LSTM network of fixed sizes: `I` inputs (padded to `4 * IQ`
+/// columns), input layer of `E = 4 * EB` rows, `H = 4 * HQ` cells (gate matrix over
+/// `ZQ = EB + HQ` quads of `[e; h]`), `O` outputs (padded to `4 * OB` rows).
+#[derive(Clone, Copy, Debug)]
+pub struct QuantLstm<
+    F: WeightFormat,
+    const I: usize,
+    const IQ: usize,
+    const EB: usize,
+    const H: usize,
+    const HQ: usize,
+    const ZQ: usize,
+    const O: usize,
+    const OB: usize,
+> {
+    /// Input normalisation: per-feature mean (f32).
+    pub input_mean: [f32; I],
+    /// Input quantisation: `2^12 / std` per feature.
+    pub input_scale: [f32; I],
+    /// Input layer weights `[block][quad]`.
+    pub in_w: [[F::Quad; IQ]; EB],
+    /// Input layer bias (accumulator scale).
+    pub in_bias: [[i32; 4]; EB],
+    /// Input layer requantisation to Q3.12.
+    pub in_requant: [[Requant; 4]; EB],
+    /// Gate weights over `[e; h]`; block `j` = rows `i_j, f_j, g_j, o_j`.
+    pub gate_w: [[F::Quad; ZQ]; H],
+    /// Gate bias (accumulator scale).
+    pub gate_bias: [[i32; 4]; H],
+    /// Gate requantisation to Q3.12.
+    pub gate_requant: [[Requant; 4]; H],
+    /// Output weights (rows beyond `O` zero).
+    pub out_w: [[F::Quad; HQ]; OB],
+    /// f32 scale per output row (row scale x 2^-15 x output std).
+    pub out_scale: [[f32; 4]; OB],
+    /// f32 offset per output row (bias x output std + output mean).
+    pub out_offset: [[f32; 4]; OB],
+}
+
+/// The recurrent state of an integer network: the packed `[e; h]` vector (the `h`
+/// part is the state, the `e` part scratch) and the Q4.11 cell state.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct QuantState<const ZQ: usize, const H: usize> {
+    /// Packed `[e; h]`, Q0.15.
+    pub z: [[u32; 2]; ZQ],
+    /// Cell state, Q4.11.
+    pub c: [i16; H],
+}
+
+impl<const ZQ: usize, const H: usize> QuantState<ZQ, H> {
+    /// The zero state a sequence starts from.
+    pub const fn new() -> Self {
+        QuantState {
+            z: [[0; 2]; ZQ],
+            c: [0; H],
+        }
+    }
+
+    /// Forgets the past: back to the zero state.
+    pub fn reset(&mut self) {
+        *self = Self::new();
+    }
+}
+
+impl<const ZQ: usize, const H: usize> Default for QuantState<ZQ, H> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<
+    F: WeightFormat,
+    const I: usize,
+    const IQ: usize,
+    const EB: usize,
+    const H: usize,
+    const HQ: usize,
+    const ZQ: usize,
+    const O: usize,
+    const OB: usize,
+> QuantLstm<F, I, IQ, EB, H, HQ, ZQ, O, OB>
+{
+    /// Compile-time shape check, evaluated by every [`Self::step`] instantiation.
+    pub const SHAPE: () = {
+        assert!(I > 0 && O > 0 && EB > 0 && H > 0, "empty network");
+        assert!(4 * IQ >= I && 4 * IQ < I + 4, "IQ must be ceil(I / 4)");
+        assert!(4 * HQ == H, "H must be 4 * HQ");
+        assert!(ZQ == EB + HQ, "ZQ must be EB + HQ ([e; h])");
+        assert!(4 * OB >= O && 4 * OB < O + 4, "OB must be ceil(O / 4)");
+    };
+    /// Sizes.
+    pub const DIMS: QuantDims = QuantDims {
+        input: I,
+        input_quads: IQ,
+        embed_blocks: EB,
+        hidden: H,
+        output: O,
+        output_blocks: OB,
+    };
+    /// Multiply-accumulates per step (without padding).
+    pub const MACS: u32 = (4 * EB * I + 4 * H * (4 * EB + H) + O * H) as u32;
+
+    /// The network as a shape-erased view of its own arrays (no copy).
+    pub fn view(&self) -> QuantView<'_, F> {
+        QuantView {
+            dims: Self::DIMS,
+            input_mean: &self.input_mean,
+            input_scale: &self.input_scale,
+            in_w: self.in_w.as_flattened(),
+            in_bias: &self.in_bias,
+            in_requant: &self.in_requant,
+            gate_w: self.gate_w.as_flattened(),
+            gate_bias: &self.gate_bias,
+            gate_requant: &self.gate_requant,
+            out_w: self.out_w.as_flattened(),
+            out_scale: &self.out_scale,
+            out_offset: &self.out_offset,
+        }
+    }
+
+    /// One control tick: advances `state` by the raw (unnormalised) `input` and
+    /// returns the de-normalised outputs.
+    #[inline(never)]
+    pub fn step(&self, state: &mut QuantState<ZQ, H>, input: &[f32; I]) -> [f32; O] {
+        let () = Self::SHAPE;
+        let mut xq = [[0u32; 2]; IQ];
+        let mut h_new = [[0u32; 2]; HQ];
+        let mut out = [0.0f32; O];
+        self.view().step(
+            &mut state.z,
+            &mut state.c,
+            &mut xq,
+            &mut h_new,
+            input,
+            &mut out,
+        );
+        out
+    }
+}
+
+/// Sizes of an f32 network.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct F32Dims {
+    /// Inputs `I`.
+    pub input: usize,
+    /// Input-layer blocks `EB` (`E = 4 * EB`).
+    pub embed_blocks: usize,
+    /// Cells `H`.
+    pub hidden: usize,
+    /// Outputs `O`.
+    pub output: usize,
+    /// Output blocks `OB = ceil(O / 4)`.
+    pub output_blocks: usize,
+}
+
+/// An f32 network of run-time sizes borrowing flat arrays in the kernel layout.
+#[derive(Clone, Copy, Debug)]
+pub struct F32View<'a> {
+    /// Sizes.
+    pub dims: F32Dims,
+    /// `[I]`
+    pub input_mean: &'a [f32],
+    /// `[I]`
+    pub input_inv_std: &'a [f32],
+    /// `[EB * I]` blocks of 4 rows, column-interleaved.
+    pub w_in: &'a [[f32; 4]],
+    /// `[EB]`
+    pub b_in: &'a [[f32; 4]],
+    /// `[H * Z]`, `Z = E + H`.
+    pub w_gates: &'a [[f32; 4]],
+    /// `[H]`
+    pub b_gates: &'a [[f32; 4]],
+    /// `[OB * H]`
+    pub w_out: &'a [[f32; 4]],
+    /// `[OB]`
+    pub b_out: &'a [[f32; 4]],
+    /// `[OB]`
+    pub output_std: &'a [[f32; 4]],
+    /// `[OB]`
+    pub output_mean: &'a [[f32; 4]],
+}
+
+/// Four rows at once, each summed left to right (`dsp::dot4_f32`).
+#[inline(always)]
+fn dot4_f32(acc: [f32; 4], w: &[[f32; 4]], x: &[f32]) -> [f32; 4] {
+    dsp::dot4_f32(acc, w, x)
+}
+
+impl F32View<'_> {
+    /// Whether every array has the length `dims` asks for (`None`) or the first that
+    /// does not.
+    pub fn check(&self) -> Option<&'static str> {
+        let d = self.dims;
+        let z = 4 * d.embed_blocks + d.hidden;
+        let lens: [(&'static str, usize, usize); 10] = [
+            ("input_mean", d.input, self.input_mean.len()),
+            ("input_inv_std", d.input, self.input_inv_std.len()),
+            ("w_in", d.embed_blocks * d.input, self.w_in.len()),
+            ("b_in", d.embed_blocks, self.b_in.len()),
+            ("w_gates", d.hidden * z, self.w_gates.len()),
+            ("b_gates", d.hidden, self.b_gates.len()),
+            ("w_out", d.output_blocks * d.hidden, self.w_out.len()),
+            ("b_out", d.output_blocks, self.b_out.len()),
+            ("output_std", d.output_blocks, self.output_std.len()),
+            ("output_mean", d.output_blocks, self.output_mean.len()),
+        ];
+        if d.output_blocks * 4 < d.output {
+            return Some("dims");
+        }
+        lens.iter().find(|(_, e, a)| e != a).map(|(n, _, _)| *n)
+    }
+
+    /// The kernel: one step. `z` (`E + H`) and `c` (`H`) are the state, `xn` (`I`)
+    /// and `h_new` (`H`) scratch. Lengths are trusted (never a panic).
+    #[inline(always)]
+    pub fn step(
+        &self,
+        z: &mut [f32],
+        c: &mut [f32],
+        xn: &mut [f32],
+        h_new: &mut [f32],
+        input: &[f32],
+        out: &mut [f32],
+    ) {
+        let d = self.dims;
+        let e_len = 4 * d.embed_blocks;
+        for (((n, x), m), s) in xn
+            .iter_mut()
+            .zip(input)
+            .zip(self.input_mean)
+            .zip(self.input_inv_std)
+        {
+            *n = (x - m) * s;
+        }
+        let xn: &[f32] = xn;
+        for ((w, b), e4) in self
+            .w_in
+            .chunks_exact(d.input.max(1))
+            .zip(self.b_in)
+            .zip(z.chunks_exact_mut(4))
+        {
+            let acc = dot4_f32([0.0; 4], w, xn);
+            for ((e, a), bb) in e4.iter_mut().zip(acc).zip(b) {
+                *e = math::tanh(a + bb);
+            }
+        }
+        let z_in: &[f32] = z;
+        let rows = self
+            .w_gates
+            .chunks_exact((e_len + d.hidden).max(1))
+            .zip(self.b_gates);
+        for (((w, b), cj), hn) in rows.zip(c.iter_mut()).zip(h_new.iter_mut()) {
+            let acc = dot4_f32([0.0; 4], w, z_in);
+            let i = math::sigmoid(acc[0] + b[0]);
+            let f = math::sigmoid(acc[1] + b[1]);
+            let g = math::tanh(acc[2] + b[2]);
+            let o = math::sigmoid(acc[3] + b[3]);
+            *cj = f * *cj + i * g;
+            *hn = o * math::tanh(*cj);
+        }
+        if let Some(hz) = z.get_mut(e_len..) {
+            for (dst, src) in hz.iter_mut().zip(h_new.iter()) {
+                *dst = *src;
+            }
+        }
+        let h_new: &[f32] = h_new;
+        let mut ys = out.iter_mut();
+        let outs = self
+            .w_out
+            .chunks_exact(d.hidden.max(1))
+            .zip(self.b_out)
+            .zip(self.output_std)
+            .zip(self.output_mean);
+        for (((w, b), s), m) in outs {
+            let acc = dot4_f32([0.0; 4], w, h_new);
+            for r in 0..4 {
+                if let Some(y) = ys.next() {
+                    *y = (acc[r] + b[r]) * s[r] + m[r];
+                }
+            }
+        }
+    }
+}
+
+/// The f32 network of fixed sizes in the exporter's layout: `I` inputs, input layer
+/// of `E = 4 * EB` rows, `H` cells over `Z = E + H` columns (`[e; h]`), `O` outputs
+/// in `OB` blocks. Each block stores its 4 rows column-interleaved (`[k][row]`);
+/// every row sums left to right in f32, sigmoid and tanh are `math::sigmoid` /
+/// `math::tanh` (libm), the arithmetic of `crate::lstm`.
+#[derive(Clone, Copy, Debug)]
+pub struct F32Lstm<
+    const I: usize,
+    const E: usize,
+    const EB: usize,
+    const H: usize,
+    const Z: usize,
+    const O: usize,
+    const OB: usize,
+> {
+    /// Input normalisation: per-feature mean.
+    pub input_mean: [f32; I],
+    /// Input normalisation: `1 / std` per feature.
+    pub input_inv_std: [f32; I],
+    /// Input layer weights, 4-row blocks `[block][k][row]`.
+    pub w_in: [[[f32; 4]; I]; EB],
+    /// Input layer bias.
+    pub b_in: [[f32; 4]; EB],
+    /// Gate weights over `[e; h]`, block `j` = rows `i_j, f_j, g_j, o_j`.
+    pub w_gates: [[[f32; 4]; Z]; H],
+    /// Gate bias (`bias_ih + bias_hh`).
+    pub b_gates: [[f32; 4]; H],
+    /// Output weights (rows beyond `O` zero).
+    pub w_out: [[[f32; 4]; H]; OB],
+    /// Output bias.
+    pub b_out: [[f32; 4]; OB],
+    /// Output de-normalisation: std per row.
+    pub output_std: [[f32; 4]; OB],
+    /// Output de-normalisation: mean per row.
+    pub output_mean: [[f32; 4]; OB],
+}
+
+/// The recurrent state of the f32 network: `[e; h]` (the `h` part is the state) and `c`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct F32State<const Z: usize, const H: usize> {
+    /// `[e; h]`.
+    pub z: [f32; Z],
+    /// Cell state.
+    pub c: [f32; H],
+}
+
+impl<const Z: usize, const H: usize> F32State<Z, H> {
+    /// The zero state.
+    pub const fn new() -> Self {
+        F32State {
+            z: [0.0; Z],
+            c: [0.0; H],
+        }
+    }
+    /// Back to the zero state.
+    pub fn reset(&mut self) {
+        *self = Self::new();
+    }
+}
+
+impl<const Z: usize, const H: usize> Default for F32State<Z, H> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<
+    const I: usize,
+    const E: usize,
+    const EB: usize,
+    const H: usize,
+    const Z: usize,
+    const O: usize,
+    const OB: usize,
+> F32Lstm<I, E, EB, H, Z, O, OB>
+{
+    /// Compile-time shape check, evaluated by every [`Self::step`] instantiation.
+    pub const SHAPE: () = {
+        assert!(I > 0 && O > 0 && E > 0 && H > 0, "empty network");
+        assert!(E == 4 * EB, "E must be 4 * EB");
+        assert!(Z == E + H, "Z must be E + H");
+        assert!(4 * OB >= O && 4 * OB < O + 4, "OB must be ceil(O / 4)");
+    };
+    /// Sizes.
+    pub const DIMS: F32Dims = F32Dims {
+        input: I,
+        embed_blocks: EB,
+        hidden: H,
+        output: O,
+        output_blocks: OB,
+    };
+    /// Multiply-accumulates per step.
+    pub const MACS: u32 = (E * I + 4 * H * Z + O * H) as u32;
+
+    /// The network as a shape-erased view of its own arrays (no copy).
+    pub fn view(&self) -> F32View<'_> {
+        F32View {
+            dims: Self::DIMS,
+            input_mean: &self.input_mean,
+            input_inv_std: &self.input_inv_std,
+            w_in: self.w_in.as_flattened(),
+            b_in: &self.b_in,
+            w_gates: self.w_gates.as_flattened(),
+            b_gates: &self.b_gates,
+            w_out: self.w_out.as_flattened(),
+            b_out: &self.b_out,
+            output_std: &self.output_std,
+            output_mean: &self.output_mean,
+        }
+    }
+
+    /// One control tick: advances `state` by the raw `input`, returns the outputs.
+    #[inline(never)]
+    pub fn step(&self, state: &mut F32State<Z, H>, input: &[f32; I]) -> [f32; O] {
+        let () = Self::SHAPE;
+        let mut xn = [0.0f32; I];
+        let mut h_new = [0.0f32; H];
+        let mut out = [0.0f32; O];
+        self.view().step(
+            &mut state.z,
+            &mut state.c,
+            &mut xn,
+            &mut h_new,
+            input,
+            &mut out,
+        );
+        out
+    }
+}

@@ -1,0 +1,1292 @@
+//! Quantise a compensation network into the firmware's kernel layout
+//! (`firmware::quant`, Q formats documented there) and write it, with the
+//! normalisation, feature preset, joints, control rate and optionally the dynamics
+//! model, as ONE Rust source file of fixed-size `static`/`const` arrays that the
+//! firmware compiles in (`model-export export`).
+//!
+//! The host evaluation of an exported network runs the firmware's own shape-erased
+//! kernels (`QuantView::step`, `F32View::step`) on the exporter's vectors, so the
+//! predictions written into the file (`SELF_CHECK_*`) are what the target computes.
+use crate::nn::model::LstmModel;
+use anyhow::{Result, bail};
+use firmware::dynamics::RigidBodyModel;
+use firmware::quant::{
+    F32Dims, F32View, I8Weights, I16Weights, PRE_FRAC_BITS, QuantDims, QuantView, Requant,
+    WeightFormat,
+};
+use sha2::{Digest, Sha256};
+use std::fmt::Write as _;
+
+/// Version of the generated file's layout; bump on incompatible changes.
+pub const SCHEMA_VERSION: u32 = 1;
+
+/// Numeric precision of an exported network.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Precision {
+    /// f32 weights and activations.
+    F32,
+    /// int16 weights, int16 activations.
+    Int16,
+    /// int8 weights, int16 activations.
+    Int8,
+}
+
+impl Precision {
+    /// All precisions, in report order.
+    pub const ALL: [Precision; 3] = [Precision::F32, Precision::Int16, Precision::Int8];
+    /// Name in reports and generated files.
+    pub fn name(self) -> &'static str {
+        match self {
+            Precision::F32 => "f32",
+            Precision::Int16 => "int16",
+            Precision::Int8 => "int8",
+        }
+    }
+}
+
+/// Why a network cannot be exported.
+#[derive(Debug, thiserror::Error)]
+pub enum ExportError {
+    /// A weight or normalisation value is NaN or infinite.
+    #[error("tensor `{tensor}` element {index} is {value}: weights must be finite")]
+    NotFinite {
+        /// Tensor name (interchange name).
+        tensor: &'static str,
+        /// Flat index.
+        index: usize,
+        /// The value.
+        value: f32,
+    },
+    /// A row's scale does not fit the fixed-point requantisation.
+    #[error(
+        "layer `{layer}` row {row}: scale {scale:e} overflows the Q3.12 pre-activation format \
+         (needs a shift of {shift} after the high word, allowed 0..=31, i.e. 2^-64 <= scale < 2^-1); the weights are too large or too small"
+    )]
+    ScaleOverflow {
+        /// Layer name.
+        layer: &'static str,
+        /// Row.
+        row: usize,
+        /// Real value of one accumulator unit in Q3.12 units.
+        scale: f64,
+        /// The shift it would need.
+        shift: i64,
+    },
+    /// A standard deviation is not positive.
+    #[error("tensor `{tensor}` element {index} is {value}: standard deviations must be > 0")]
+    BadStd {
+        /// Tensor name.
+        tensor: &'static str,
+        /// Index.
+        index: usize,
+        /// Value.
+        value: f32,
+    },
+    /// The model does not fit the flash budget.
+    #[error(
+        "the exported network needs {bytes} bytes of flash, over the budget of {budget} bytes \
+         ({source_file})"
+    )]
+    TooLarge {
+        /// Bytes of weights.
+        bytes: usize,
+        /// Budget.
+        budget: u64,
+        /// Where the budget comes from.
+        source_file: String,
+    },
+}
+
+fn check_finite(m: &LstmModel) -> Result<(), ExportError> {
+    for (tensor, v) in m.tensors() {
+        if let Some(index) = v.iter().position(|x| !x.is_finite()) {
+            return Err(ExportError::NotFinite {
+                tensor,
+                index,
+                value: v[index],
+            });
+        }
+    }
+    for (tensor, v) in [
+        ("norm.input_std", &m.input_std),
+        ("norm.output_std", &m.output_std),
+    ] {
+        if let Some(index) = v.iter().position(|&x| x <= 0.0) {
+            return Err(ExportError::BadStd {
+                tensor,
+                index,
+                value: v[index],
+            });
+        }
+    }
+    Ok(())
+}
+
+fn pad4(n: usize) -> usize {
+    n.div_ceil(4) * 4
+}
+
+/// The network's rows in kernel order with padding: returns `(rows, bias)` for each
+/// layer, as f64. Gate block `j` = rows `i_j, f_j, g_j, o_j`, columns `[e (Ep); h (Hp)]`.
+struct Layers {
+    e_pad: usize,
+    h_pad: usize,
+    input: (Vec<Vec<f64>>, Vec<f64>),
+    gates: (Vec<Vec<f64>>, Vec<f64>),
+    output: (Vec<Vec<f64>>, Vec<f64>),
+}
+
+fn layers(m: &LstmModel, in_cols: usize) -> Layers {
+    let d = m.dims;
+    let (i, e, h, o) = (d.input, d.embed, d.hidden, d.output);
+    let (ep, hp) = (pad4(e), pad4(h));
+    let mut input = (vec![vec![0.0; in_cols]; ep], vec![0.0; ep]);
+    for r in 0..e {
+        for k in 0..i {
+            input.0[r][k] = m.w_in[r * i + k] as f64;
+        }
+        input.1[r] = m.b_in[r] as f64;
+    }
+    let mut gates = (vec![vec![0.0; ep + hp]; 4 * hp], vec![0.0; 4 * hp]);
+    for j in 0..h {
+        for g in 0..4 {
+            let src = g * h + j;
+            let row = &mut gates.0[4 * j + g];
+            for (dst, w) in row.iter_mut().zip(&m.w_ih[src * e..(src + 1) * e]) {
+                *dst = *w as f64;
+            }
+            for (dst, w) in row[ep..].iter_mut().zip(&m.w_hh[src * h..(src + 1) * h]) {
+                *dst = *w as f64;
+            }
+            // The LSTM's two biases summed in f32, as the f32 firmware step does.
+            gates.1[4 * j + g] = (m.b_ih[src] + m.b_hh[src]) as f64;
+        }
+    }
+    let mut output = (vec![vec![0.0; hp]; pad4(o)], vec![0.0; pad4(o)]);
+    for r in 0..o {
+        for k in 0..h {
+            output.0[r][k] = m.w_out[r * h + k] as f64;
+        }
+        output.1[r] = m.b_out[r] as f64;
+    }
+    Layers {
+        e_pad: ep,
+        h_pad: hp,
+        input,
+        gates,
+        output,
+    }
+}
+
+/// Per-row quantisation summary (for reports).
+#[derive(Clone, Debug, Default)]
+pub struct RowStats {
+    /// Rows whose scale was enlarged beyond `max|w| / MAX_WEIGHT` so that no
+    /// accumulator can overflow.
+    pub rows_widened: usize,
+    /// Rows in total.
+    pub rows: usize,
+}
+
+/// An integer network in the kernel layout, with run-time sizes.
+#[derive(Clone, Debug)]
+pub struct QuantNet<F: WeightFormat> {
+    /// Sizes.
+    pub dims: QuantDims,
+    /// `[I]`
+    pub input_mean: Vec<f32>,
+    /// `[I]`
+    pub input_scale: Vec<f32>,
+    /// Input layer.
+    pub in_w: Vec<F::Quad>,
+    /// Input bias.
+    pub in_bias: Vec<[i32; 4]>,
+    /// Input requantisation.
+    pub in_requant: Vec<[Requant; 4]>,
+    /// Gates.
+    pub gate_w: Vec<F::Quad>,
+    /// Gate bias.
+    pub gate_bias: Vec<[i32; 4]>,
+    /// Gate requantisation.
+    pub gate_requant: Vec<[Requant; 4]>,
+    /// Output layer.
+    pub out_w: Vec<F::Quad>,
+    /// Output scale.
+    pub out_scale: Vec<[f32; 4]>,
+    /// Output offset.
+    pub out_offset: Vec<[f32; 4]>,
+    /// Quantisation summary.
+    pub stats: RowStats,
+}
+
+const ACC_LIMIT: f64 = 2_147_483_647.0;
+
+/// Quantises one row; returns the integer weights, the bias in accumulator scale and
+/// the row scale `s` (`w ~ s * w_q`). `x_frac`: fraction bits of the row's input.
+fn quantise_row(
+    w: &[f64],
+    b: f64,
+    max_w: i32,
+    x_frac: u32,
+    with_bias: bool,
+) -> (Vec<i32>, i32, f64, bool) {
+    let maxabs = w.iter().fold(0.0f64, |a, x| a.max(x.abs()));
+    let xs = (1u64 << x_frac) as f64;
+    let b_eff = if with_bias { b.abs() } else { 0.0 };
+    let mut s = (maxabs / max_w as f64).max(b_eff * xs / (1u64 << 29) as f64);
+    if s == 0.0 {
+        return (vec![0; w.len()], 0, 0.0, false);
+    }
+    let mut widened = false;
+    for _ in 0..64 {
+        let wq: Vec<i32> = w
+            .iter()
+            .map(|x| ((x / s).round() as i32).clamp(-max_w, max_w))
+            .collect();
+        let bq = if with_bias { (b * xs / s).round() } else { 0.0 };
+        let bound = wq.iter().map(|q| q.unsigned_abs() as f64).sum::<f64>() * 32768.0 + bq.abs();
+        if bound < ACC_LIMIT {
+            return (wq, bq as i32, s, widened);
+        }
+        s *= bound / (ACC_LIMIT - 65536.0) * 1.0001;
+        widened = true;
+    }
+    // Unreachable in practice: each pass shrinks the bound below the limit.
+    (vec![0; w.len()], 0, 0.0, widened)
+}
+
+/// `M = mult * 2^-(32 + shift)` with `mult` in `[2^30, 2^31)`, `shift` in `0..=31`.
+fn requant(layer: &'static str, row: usize, m: f64) -> Result<Requant, ExportError> {
+    if m == 0.0 {
+        return Ok(Requant::ZERO);
+    }
+    let e = m.log2().floor() as i64;
+    let mut mult = (m * 2f64.powi((30 - e) as i32)).round() as i64;
+    let mut total = 30 - e;
+    if mult >= 1 << 31 {
+        mult >>= 1;
+        total -= 1;
+    }
+    let shift = total - 32;
+    if !(0..=31).contains(&shift) {
+        return Err(ExportError::ScaleOverflow {
+            layer,
+            row,
+            scale: m,
+            shift,
+        });
+    }
+    Ok(Requant {
+        mult: mult as i32,
+        shift: shift as u8,
+    })
+}
+
+/// Quantises a dense layer into blocks of 4 rows and quads of 4 columns.
+#[allow(clippy::type_complexity)]
+fn quant_layer<F: WeightFormat>(
+    layer: &'static str,
+    rows: &[Vec<f64>],
+    bias: &[f64],
+    x_frac: u32,
+    stats: &mut RowStats,
+) -> Result<(Vec<F::Quad>, Vec<[i32; 4]>, Vec<[Requant; 4]>, Vec<f64>), ExportError> {
+    let cols = pad4(rows.first().map_or(0, Vec::len));
+    let mut wq = Vec::new();
+    let mut bq = Vec::new();
+    let mut scales = Vec::new();
+    let mut rq = Vec::new();
+    for (r, (row, b)) in rows.iter().zip(bias).enumerate() {
+        let (mut q, b_q, s, widened) = quantise_row(row, *b, F::MAX_WEIGHT, x_frac, true);
+        q.resize(cols, 0);
+        stats.rows += 1;
+        stats.rows_widened += widened as usize;
+        // Pre-activation Q3.12 = acc * s * 2^-x_frac * 2^12.
+        let m = s * 2f64.powi(PRE_FRAC_BITS as i32 - x_frac as i32);
+        rq.push(requant(layer, r, m)?);
+        wq.push(q);
+        bq.push(b_q);
+        scales.push(s);
+    }
+    let mut w = Vec::new();
+    let mut bias4 = Vec::new();
+    let mut rq4 = Vec::new();
+    for blk in 0..rows.len() / 4 {
+        for q in 0..cols / 4 {
+            let m: [[i32; 4]; 4] =
+                std::array::from_fn(|r| std::array::from_fn(|k| wq[4 * blk + r][4 * q + k]));
+            w.push(F::pack(m));
+        }
+        bias4.push(std::array::from_fn(|r| bq[4 * blk + r]));
+        rq4.push(std::array::from_fn(|r| rq[4 * blk + r]));
+    }
+    Ok((w, bias4, rq4, scales))
+}
+
+impl<F: WeightFormat> QuantNet<F> {
+    /// Quantises `m` (see `firmware::quant` for the scheme).
+    pub fn quantise(m: &LstmModel) -> Result<Self, ExportError> {
+        check_finite(m)?;
+        let d = m.dims;
+        let ip = pad4(d.input);
+        let l = layers(m, ip);
+        let mut stats = RowStats::default();
+        let (in_w, in_bias, in_requant, _) =
+            quant_layer::<F>("input", &l.input.0, &l.input.1, 12, &mut stats)?;
+        let (gate_w, gate_bias, gate_requant, _) =
+            quant_layer::<F>("lstm", &l.gates.0, &l.gates.1, 15, &mut stats)?;
+        // Output layer: no integer bias; y = acc * s * 2^-15 * std + (b * std + mean).
+        let mut out_w = Vec::new();
+        let mut out_scale = Vec::new();
+        let mut out_offset = Vec::new();
+        let hp = l.h_pad;
+        let ob = pad4(d.output) / 4;
+        let mut rows_q = Vec::new();
+        let mut sc = Vec::new();
+        let mut off = Vec::new();
+        for (r, row) in l.output.0.iter().enumerate() {
+            let (mut q, _, s, widened) = quantise_row(row, 0.0, F::MAX_WEIGHT, 15, false);
+            stats.rows += 1;
+            stats.rows_widened += widened as usize;
+            q.resize(hp, 0);
+            rows_q.push(q);
+            if r < d.output {
+                let std = m.output_std[r];
+                sc.push((s * 2f64.powi(-15)) as f32 * std);
+                off.push(m.b_out[r] * std + m.output_mean[r]);
+            } else {
+                sc.push(0.0);
+                off.push(0.0);
+            }
+        }
+        for blk in 0..ob {
+            for q in 0..hp / 4 {
+                let mm: [[i32; 4]; 4] = std::array::from_fn(|r| {
+                    std::array::from_fn(|k| rows_q[4 * blk + r][4 * q + k])
+                });
+                out_w.push(F::pack(mm));
+            }
+            out_scale.push(std::array::from_fn(|r| sc[4 * blk + r]));
+            out_offset.push(std::array::from_fn(|r| off[4 * blk + r]));
+        }
+        let net = QuantNet {
+            dims: QuantDims {
+                input: d.input,
+                input_quads: ip / 4,
+                embed_blocks: l.e_pad / 4,
+                hidden: hp,
+                output: d.output,
+                output_blocks: ob,
+            },
+            input_mean: m.input_mean.clone(),
+            input_scale: m.input_std.iter().map(|s| 4096.0 / s).collect(),
+            in_w,
+            in_bias,
+            in_requant,
+            gate_w,
+            gate_bias,
+            gate_requant,
+            out_w,
+            out_scale,
+            out_offset,
+            stats,
+        };
+        debug_assert_eq!(net.view().check(), None);
+        Ok(net)
+    }
+
+    /// The firmware view of this network.
+    pub fn view(&self) -> QuantView<'_, F> {
+        QuantView {
+            dims: self.dims,
+            input_mean: &self.input_mean,
+            input_scale: &self.input_scale,
+            in_w: &self.in_w,
+            in_bias: &self.in_bias,
+            in_requant: &self.in_requant,
+            gate_w: &self.gate_w,
+            gate_bias: &self.gate_bias,
+            gate_requant: &self.gate_requant,
+            out_w: &self.out_w,
+            out_scale: &self.out_scale,
+            out_offset: &self.out_offset,
+        }
+    }
+
+    /// Streams the firmware kernel from the zero state over `inputs`.
+    pub fn stream(&self, inputs: &[Vec<f32>]) -> Vec<Vec<f32>> {
+        let d = self.dims;
+        let v = self.view();
+        let mut z = vec![[0u32; 2]; d.z_quads()];
+        let mut c = vec![0i16; d.hidden];
+        let mut xq = vec![[0u32; 2]; d.input_quads];
+        let mut hn = vec![[0u32; 2]; d.hidden / 4];
+        inputs
+            .iter()
+            .map(|x| {
+                let mut y = vec![0.0f32; d.output];
+                v.step(&mut z, &mut c, &mut xq, &mut hn, x, &mut y);
+                y
+            })
+            .collect()
+    }
+
+    /// Bytes of flash the arrays take.
+    pub fn flash_bytes(&self) -> usize {
+        let q = std::mem::size_of::<F::Quad>();
+        (self.in_w.len() + self.gate_w.len() + self.out_w.len()) * q
+            + (self.in_bias.len() + self.gate_bias.len()) * 16
+            + (self.in_requant.len() + self.gate_requant.len()) * 32
+            + (self.out_scale.len() + self.out_offset.len()) * 16
+            + self.input_mean.len() * 8
+    }
+}
+
+/// The f32 network in the kernel layout, with run-time sizes.
+#[derive(Clone, Debug)]
+pub struct F32Net {
+    /// Sizes.
+    pub dims: F32Dims,
+    /// `[I]`
+    pub input_mean: Vec<f32>,
+    /// `[I]`
+    pub input_inv_std: Vec<f32>,
+    /// Input layer.
+    pub w_in: Vec<[f32; 4]>,
+    /// Input bias.
+    pub b_in: Vec<[f32; 4]>,
+    /// Gates.
+    pub w_gates: Vec<[f32; 4]>,
+    /// Gate bias.
+    pub b_gates: Vec<[f32; 4]>,
+    /// Output layer.
+    pub w_out: Vec<[f32; 4]>,
+    /// Output bias.
+    pub b_out: Vec<[f32; 4]>,
+    /// Output std.
+    pub output_std: Vec<[f32; 4]>,
+    /// Output mean.
+    pub output_mean: Vec<[f32; 4]>,
+}
+
+#[allow(clippy::needless_range_loop)] // k indexes the columns of 4 rows at once
+fn interleave(rows: &[Vec<f64>]) -> Vec<[f32; 4]> {
+    let cols = rows.first().map_or(0, Vec::len);
+    let mut out = Vec::new();
+    for blk in rows.chunks_exact(4) {
+        for k in 0..cols {
+            out.push(std::array::from_fn(|r| blk[r][k] as f32));
+        }
+    }
+    out
+}
+
+fn blocks4(v: &[f64]) -> Vec<[f32; 4]> {
+    v.chunks_exact(4)
+        .map(|c| std::array::from_fn(|r| c[r] as f32))
+        .collect()
+}
+
+impl F32Net {
+    /// Rearranges `m` into the kernel layout (no rounding: every value is the f32 of
+    /// the model; the gate bias is `bias_ih + bias_hh` in f32).
+    pub fn arrange(m: &LstmModel) -> Result<Self, ExportError> {
+        check_finite(m)?;
+        let d = m.dims;
+        let l = layers(m, d.input);
+        let o = pad4(d.output);
+        let mut std = vec![0.0f64; o];
+        let mut mean = vec![0.0f64; o];
+        for r in 0..d.output {
+            std[r] = m.output_std[r] as f64;
+            mean[r] = m.output_mean[r] as f64;
+        }
+        let net = F32Net {
+            dims: F32Dims {
+                input: d.input,
+                embed_blocks: l.e_pad / 4,
+                hidden: l.h_pad,
+                output: d.output,
+                output_blocks: o / 4,
+            },
+            input_mean: m.input_mean.clone(),
+            input_inv_std: m.input_std.iter().map(|s| 1.0 / s).collect(),
+            w_in: interleave(&l.input.0),
+            b_in: blocks4(&l.input.1),
+            w_gates: interleave(&l.gates.0),
+            b_gates: blocks4(&l.gates.1),
+            w_out: interleave(&l.output.0),
+            b_out: blocks4(&l.output.1),
+            output_std: blocks4(&std),
+            output_mean: blocks4(&mean),
+        };
+        debug_assert_eq!(net.view().check(), None);
+        Ok(net)
+    }
+
+    /// The firmware view.
+    pub fn view(&self) -> F32View<'_> {
+        F32View {
+            dims: self.dims,
+            input_mean: &self.input_mean,
+            input_inv_std: &self.input_inv_std,
+            w_in: &self.w_in,
+            b_in: &self.b_in,
+            w_gates: &self.w_gates,
+            b_gates: &self.b_gates,
+            w_out: &self.w_out,
+            b_out: &self.b_out,
+            output_std: &self.output_std,
+            output_mean: &self.output_mean,
+        }
+    }
+
+    /// Streams the firmware kernel from the zero state over `inputs`.
+    pub fn stream(&self, inputs: &[Vec<f32>]) -> Vec<Vec<f32>> {
+        let d = self.dims;
+        let v = self.view();
+        let e = 4 * d.embed_blocks;
+        let mut z = vec![0.0f32; e + d.hidden];
+        let mut c = vec![0.0f32; d.hidden];
+        let mut xn = vec![0.0f32; d.input];
+        let mut hn = vec![0.0f32; d.hidden];
+        inputs
+            .iter()
+            .map(|x| {
+                let mut y = vec![0.0f32; d.output];
+                v.step(&mut z, &mut c, &mut xn, &mut hn, x, &mut y);
+                y
+            })
+            .collect()
+    }
+
+    /// Bytes of flash the arrays take.
+    pub fn flash_bytes(&self) -> usize {
+        (self.w_in.len()
+            + self.b_in.len()
+            + self.w_gates.len()
+            + self.b_gates.len()
+            + self.w_out.len()
+            + 3 * self.b_out.len())
+            * 16
+            + self.input_mean.len() * 8
+    }
+}
+
+/// An exported network in one of the precisions.
+#[derive(Clone, Debug)]
+pub enum Exported {
+    /// f32.
+    F32(F32Net),
+    /// int16 weights.
+    Int16(QuantNet<I16Weights>),
+    /// int8 weights.
+    Int8(QuantNet<I8Weights>),
+}
+
+impl Exported {
+    /// Quantises / arranges `m` for `p`.
+    pub fn new(m: &LstmModel, p: Precision) -> Result<Self, ExportError> {
+        Ok(match p {
+            Precision::F32 => Exported::F32(F32Net::arrange(m)?),
+            Precision::Int16 => Exported::Int16(QuantNet::quantise(m)?),
+            Precision::Int8 => Exported::Int8(QuantNet::quantise(m)?),
+        })
+    }
+
+    /// Streams the firmware kernel from the zero state.
+    pub fn stream(&self, inputs: &[Vec<f32>]) -> Vec<Vec<f32>> {
+        match self {
+            Exported::F32(n) => n.stream(inputs),
+            Exported::Int16(n) => n.stream(inputs),
+            Exported::Int8(n) => n.stream(inputs),
+        }
+    }
+
+    /// Bytes of flash the network's arrays take.
+    pub fn flash_bytes(&self) -> usize {
+        match self {
+            Exported::F32(n) => n.flash_bytes(),
+            Exported::Int16(n) => n.flash_bytes(),
+            Exported::Int8(n) => n.flash_bytes(),
+        }
+    }
+}
+
+/// FNV-1a over the bits of every output of every step (the self-check digest).
+pub fn output_digest(outputs: &[Vec<f32>]) -> u64 {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    for row in outputs {
+        for y in row {
+            for b in y.to_bits().to_le_bytes() {
+                h ^= b as u64;
+                h = h.wrapping_mul(0x0000_0100_0000_01b3);
+            }
+        }
+    }
+    h
+}
+
+/// What goes into the generated file besides the network.
+#[derive(Clone, Debug)]
+pub struct ExportMeta {
+    /// Feature preset (`paper`, `feedforward`, `custom`).
+    pub preset: String,
+    /// Indices of the compensated joints (0-based).
+    pub joints: Vec<usize>,
+    /// Control rate [Hz].
+    pub control_rate_hz: u32,
+    /// Steps of golden input for the self-check (`firmware::quant::golden_input`).
+    pub self_check_steps: usize,
+}
+
+fn f32_lit(x: f32) -> String {
+    let s = format!("{x:?}");
+    if s.contains('.') || s.contains('e') || s.contains("inf") || s.contains("NaN") {
+        s
+    } else {
+        format!("{s}.0")
+    }
+}
+
+fn list<T>(v: &[T], f: impl Fn(&T) -> String) -> String {
+    let items: Vec<String> = v.iter().map(f).collect();
+    format!("[{}]", items.join(", "))
+}
+
+fn quads_i16(q: &[[u32; 4]; 2]) -> String {
+    format!(
+        "[{}, {}]",
+        list(&q[0], |w| format!("{w:#010x}")),
+        list(&q[1], |w| format!("{w:#010x}"))
+    )
+}
+
+fn quads_i8(q: &[u32; 4]) -> String {
+    list(q, |w| format!("{w:#010x}"))
+}
+
+fn requant4(r: &[Requant; 4]) -> String {
+    list(r, |r| {
+        format!("Requant {{ mult: {}, shift: {} }}", r.mult, r.shift)
+    })
+}
+
+fn nested<T: Copy>(flat: &[T], per: usize, f: impl Fn(&T) -> String) -> String {
+    let chunks: Vec<String> = flat.chunks(per.max(1)).map(|c| list(c, &f)).collect();
+    format!("[\n    {}\n]", chunks.join(",\n    "))
+}
+
+fn write_quant<F: WeightFormat>(
+    s: &mut String,
+    n: &QuantNet<F>,
+    fmt: &str,
+    quad: impl Fn(&F::Quad) -> String,
+) {
+    let d = n.dims;
+    let (i, iq, eb, h, hq, zq, o, ob) = (
+        d.input,
+        d.input_quads,
+        d.embed_blocks,
+        d.hidden,
+        d.hidden / 4,
+        d.z_quads(),
+        d.output,
+        d.output_blocks,
+    );
+    let _ = writeln!(
+        s,
+        "/// The network's type: `{}` weights, sizes from the exporter.",
+        F::NAME
+    );
+    let _ = writeln!(
+        s,
+        "pub type Network = QuantLstm<{fmt}, {i}, {iq}, {eb}, {h}, {hq}, {zq}, {o}, {ob}>;"
+    );
+    let _ = writeln!(s, "/// The network's recurrent state.");
+    let _ = writeln!(s, "pub type State = QuantState<{zq}, {h}>;");
+    let _ = writeln!(s, "/// The network (flash).");
+    let _ = writeln!(s, "pub static NETWORK: Network = QuantLstm {{");
+    let _ = writeln!(
+        s,
+        "    input_mean: {},",
+        list(&n.input_mean, |x| f32_lit(*x))
+    );
+    let _ = writeln!(
+        s,
+        "    input_scale: {},",
+        list(&n.input_scale, |x| f32_lit(*x))
+    );
+    let _ = writeln!(s, "    in_w: {},", nested(&n.in_w, iq, &quad));
+    let _ = writeln!(
+        s,
+        "    in_bias: {},",
+        list(&n.in_bias, |b| list(b, |x| x.to_string()))
+    );
+    let _ = writeln!(
+        s,
+        "    in_requant: [{}],",
+        n.in_requant
+            .iter()
+            .map(requant4)
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+    let _ = writeln!(s, "    gate_w: {},", nested(&n.gate_w, zq, &quad));
+    let _ = writeln!(
+        s,
+        "    gate_bias: {},",
+        list(&n.gate_bias, |b| list(b, |x| x.to_string()))
+    );
+    let _ = writeln!(
+        s,
+        "    gate_requant: [{}],",
+        n.gate_requant
+            .iter()
+            .map(requant4)
+            .collect::<Vec<_>>()
+            .join(",\n        ")
+    );
+    let _ = writeln!(s, "    out_w: {},", nested(&n.out_w, hq, &quad));
+    let _ = writeln!(
+        s,
+        "    out_scale: {},",
+        list(&n.out_scale, |b| list(b, |x| f32_lit(*x)))
+    );
+    let _ = writeln!(
+        s,
+        "    out_offset: {},",
+        list(&n.out_offset, |b| list(b, |x| f32_lit(*x)))
+    );
+    let _ = writeln!(s, "}};");
+}
+
+fn write_f32(s: &mut String, n: &F32Net) {
+    let d = n.dims;
+    let (i, eb, h, o, ob) = (d.input, d.embed_blocks, d.hidden, d.output, d.output_blocks);
+    let e = 4 * eb;
+    let z = e + h;
+    let v4 = |b: &[f32; 4]| list(b, |x| f32_lit(*x));
+    let _ = writeln!(s, "/// The network's type: f32, sizes from the exporter.");
+    let _ = writeln!(
+        s,
+        "pub type Network = F32Lstm<{i}, {e}, {eb}, {h}, {z}, {o}, {ob}>;"
+    );
+    let _ = writeln!(s, "/// The network's recurrent state.");
+    let _ = writeln!(s, "pub type State = F32State<{z}, {h}>;");
+    let _ = writeln!(s, "/// The network (flash).");
+    let _ = writeln!(s, "pub static NETWORK: Network = F32Lstm {{");
+    let _ = writeln!(
+        s,
+        "    input_mean: {},",
+        list(&n.input_mean, |x| f32_lit(*x))
+    );
+    let _ = writeln!(
+        s,
+        "    input_inv_std: {},",
+        list(&n.input_inv_std, |x| f32_lit(*x))
+    );
+    let _ = writeln!(s, "    w_in: {},", nested(&n.w_in, i, v4));
+    let _ = writeln!(s, "    b_in: {},", list(&n.b_in, v4));
+    let _ = writeln!(s, "    w_gates: {},", nested(&n.w_gates, z, v4));
+    let _ = writeln!(s, "    b_gates: {},", list(&n.b_gates, v4));
+    let _ = writeln!(s, "    w_out: {},", nested(&n.w_out, h, v4));
+    let _ = writeln!(s, "    b_out: {},", list(&n.b_out, v4));
+    let _ = writeln!(s, "    output_std: {},", list(&n.output_std, v4));
+    let _ = writeln!(s, "    output_mean: {},", list(&n.output_mean, v4));
+    let _ = writeln!(s, "}};");
+}
+
+fn write_dynamics<const N: usize>(s: &mut String, m: &RigidBodyModel<N>) {
+    let v3 = |v: &[f32; 3]| list(v, |x| f32_lit(*x));
+    let _ = writeln!(s, "/// Number of joints of the rigid-body model.");
+    let _ = writeln!(s, "pub const DYNAMICS_JOINTS: usize = {N};");
+    let _ = writeln!(s, "/// The identified (or nominal) rigid-body model, f32.");
+    let _ = writeln!(
+        s,
+        "pub static DYNAMICS: RigidBodyModel<{N}> = RigidBodyModel {{"
+    );
+    let _ = writeln!(s, "    joints: [");
+    for j in &m.joints {
+        let _ = writeln!(s, "        JointModel {{");
+        let _ = writeln!(
+            s,
+            "            origin_rotation: {},",
+            list(&j.origin_rotation, v3)
+        );
+        let _ = writeln!(
+            s,
+            "            origin_translation_m: {},",
+            v3(&j.origin_translation_m)
+        );
+        let _ = writeln!(s, "            axis: {},", v3(&j.axis));
+        let _ = writeln!(
+            s,
+            "            inertial: {},",
+            list(&j.inertial, |x| f32_lit(*x))
+        );
+        let _ = writeln!(
+            s,
+            "            viscous_nm_s_rad: {},",
+            f32_lit(j.viscous_nm_s_rad)
+        );
+        let _ = writeln!(s, "            coulomb_nm: {},", f32_lit(j.coulomb_nm));
+        let _ = writeln!(s, "            offset_nm: {},", f32_lit(j.offset_nm));
+        let _ = writeln!(
+            s,
+            "            rotor_inertia_kg_m2: {},",
+            f32_lit(j.rotor_inertia_kg_m2)
+        );
+        let _ = writeln!(s, "        }},");
+    }
+    let _ = writeln!(s, "    ],");
+    let _ = writeln!(s, "    gravity_m_s2: {},", v3(&m.gravity_m_s2));
+    let _ = writeln!(
+        s,
+        "    coulomb_inv_eps_s_rad: {},",
+        f32_lit(m.coulomb_inv_eps_s_rad)
+    );
+    let _ = writeln!(s, "}};");
+}
+
+/// A rigid-body model of any supported joint count (1..=7).
+#[derive(Clone, Debug)]
+pub enum AnyDynamics {
+    /// 1 joint.
+    J1(RigidBodyModel<1>),
+    /// 2 joints.
+    J2(RigidBodyModel<2>),
+    /// 3 joints.
+    J3(RigidBodyModel<3>),
+    /// 4 joints.
+    J4(RigidBodyModel<4>),
+    /// 5 joints.
+    J5(RigidBodyModel<5>),
+    /// 6 joints.
+    J6(RigidBodyModel<6>),
+    /// 7 joints.
+    J7(RigidBodyModel<7>),
+}
+
+impl AnyDynamics {
+    /// The nominal f32 model of a robot description (its standard parameters).
+    pub fn nominal(robot: &crate::robot::Robot) -> Result<Self> {
+        use crate::dynamics::firmware_model::build_firmware_model as b;
+        let th = robot.standard_parameters();
+        Ok(match robot.n_modelled() {
+            1 => AnyDynamics::J1(b(robot, &th)?),
+            2 => AnyDynamics::J2(b(robot, &th)?),
+            3 => AnyDynamics::J3(b(robot, &th)?),
+            4 => AnyDynamics::J4(b(robot, &th)?),
+            5 => AnyDynamics::J5(b(robot, &th)?),
+            6 => AnyDynamics::J6(b(robot, &th)?),
+            7 => AnyDynamics::J7(b(robot, &th)?),
+            n => bail!(
+                "the firmware dynamics export supports 1 to 7 modelled joints, the robot has {n}"
+            ),
+        })
+    }
+
+    fn write(&self, s: &mut String) {
+        match self {
+            AnyDynamics::J1(m) => write_dynamics(s, m),
+            AnyDynamics::J2(m) => write_dynamics(s, m),
+            AnyDynamics::J3(m) => write_dynamics(s, m),
+            AnyDynamics::J4(m) => write_dynamics(s, m),
+            AnyDynamics::J5(m) => write_dynamics(s, m),
+            AnyDynamics::J6(m) => write_dynamics(s, m),
+            AnyDynamics::J7(m) => write_dynamics(s, m),
+        }
+    }
+}
+
+/// The golden inputs of the self-check: `firmware::quant::golden::input`.
+pub fn golden_inputs(n_inputs: usize, steps: usize) -> Vec<Vec<f32>> {
+    (0..steps)
+        .map(|t| {
+            (0..n_inputs)
+                .map(|k| firmware::quant::golden::input(t, k))
+                .collect()
+        })
+        .collect()
+}
+
+/// Renders the whole generated file.
+pub fn render(
+    m: &LstmModel,
+    net: &Exported,
+    meta: &ExportMeta,
+    dynamics: Option<&AnyDynamics>,
+) -> String {
+    let mut body = String::new();
+    let preset = match meta.preset.as_str() {
+        "paper" => "Paper",
+        "feedforward" => "Feedforward",
+        _ => "Custom",
+    };
+    let s = &mut body;
+    let _ = writeln!(
+        s,
+        "/// Layout version of this file (`model_export::export::SCHEMA_VERSION`)."
+    );
+    let _ = writeln!(s, "pub const SCHEMA_VERSION: u32 = {SCHEMA_VERSION};");
+    let prec = match net {
+        Exported::F32(_) => "F32",
+        Exported::Int16(_) => "Int16",
+        Exported::Int8(_) => "Int8",
+    };
+    let _ = writeln!(s, "/// Numeric precision of the network.");
+    let _ = writeln!(s, "pub const PRECISION: Precision = Precision::{prec};");
+    let _ = writeln!(s, "/// Feature preset the network was trained with.");
+    let _ = writeln!(
+        s,
+        "pub const FEATURE_PRESET: FeaturePreset = FeaturePreset::{preset};"
+    );
+    let _ = writeln!(s, "/// Number of inputs.");
+    let _ = writeln!(s, "pub const INPUTS: usize = {};", m.dims.input);
+    let _ = writeln!(s, "/// Number of outputs.");
+    let _ = writeln!(s, "pub const OUTPUTS: usize = {};", m.dims.output);
+    let _ = writeln!(s, "/// Input feature names, in input order.");
+    let _ = writeln!(
+        s,
+        "pub const INPUT_NAMES: [&str; {}] = {};",
+        m.dims.input,
+        list(&m.input_names, |n| format!("{n:?}"))
+    );
+    let _ = writeln!(s, "/// Output names, in output order.");
+    let _ = writeln!(
+        s,
+        "pub const OUTPUT_NAMES: [&str; {}] = {};",
+        m.dims.output,
+        list(&m.output_names, |n| format!("{n:?}"))
+    );
+    let _ = writeln!(s, "/// Indices (0-based) of the compensated joints.");
+    let _ = writeln!(
+        s,
+        "pub const JOINT_INDICES: [usize; {}] = {};",
+        meta.joints.len(),
+        list(&meta.joints, |j| j.to_string())
+    );
+    let _ = writeln!(
+        s,
+        "/// Control (compensator) rate the network was trained for [Hz]."
+    );
+    let _ = writeln!(
+        s,
+        "pub const CONTROL_RATE_HZ: u32 = {};",
+        meta.control_rate_hz
+    );
+    match net {
+        Exported::F32(n) => write_f32(s, n),
+        Exported::Int16(n) => write_quant(s, n, "I16Weights", quads_i16),
+        Exported::Int8(n) => write_quant(s, n, "I8Weights", quads_i8),
+    }
+    if let Some(d) = dynamics {
+        d.write(s);
+    } else {
+        let _ = writeln!(
+            s,
+            "/// Number of joints of the rigid-body model (0: none exported)."
+        );
+        let _ = writeln!(s, "pub const DYNAMICS_JOINTS: usize = 0;");
+    }
+    let outs = net.stream(&golden_inputs(m.dims.input, meta.self_check_steps));
+    let _ = writeln!(
+        s,
+        "/// Self-check: streaming steps of `firmware::quant::golden::input` from the zero state."
+    );
+    let _ = writeln!(
+        s,
+        "pub const SELF_CHECK_STEPS: usize = {};",
+        meta.self_check_steps
+    );
+    let _ = writeln!(
+        s,
+        "/// Self-check: FNV-1a of the output bits of those steps, computed by the exporter."
+    );
+    let _ = writeln!(
+        s,
+        "pub const SELF_CHECK_FNV: u64 = {:#018x};",
+        output_digest(&outs)
+    );
+    let hash = Sha256::digest(body.as_bytes());
+    let hash64 = u64::from_be_bytes(hash[..8].try_into().unwrap_or([0; 8]));
+    let mut out = String::new();
+    let _ = writeln!(
+        out,
+        "// Generated by `model-export export` (schema {SCHEMA_VERSION}); do not edit."
+    );
+    let _ = writeln!(
+        out,
+        "// Network {}x{}x{}x{} ({}), preset `{}`, joints {:?}, {} Hz.",
+        m.dims.input,
+        m.dims.embed,
+        m.dims.hidden,
+        m.dims.output,
+        prec,
+        meta.preset,
+        meta.joints,
+        meta.control_rate_hz
+    );
+    let _ = writeln!(out, "#[allow(unused_imports)]");
+    let _ = writeln!(out, "use crate::dynamics::{{JointModel, RigidBodyModel}};");
+    let _ = writeln!(out, "#[allow(unused_imports)]");
+    let _ = writeln!(out, "use crate::model::{{FeaturePreset, Precision}};");
+    let _ = writeln!(out, "#[allow(unused_imports)]");
+    let _ = writeln!(
+        out,
+        "use crate::quant::{{F32Lstm, F32State, I8Weights, I16Weights, QuantLstm, QuantState, Requant}};"
+    );
+    let _ = writeln!(
+        out,
+        "/// SHA-256 (first 8 bytes) of everything below this line."
+    );
+    let _ = writeln!(out, "pub const CONTENT_HASH: u64 = {hash64:#018x};");
+    out.push_str(&body);
+    out
+}
+
+/// The `export` subcommand.
+pub mod cli {
+    use super::*;
+    use crate::nn::model::LstmModel;
+    use anyhow::Context;
+    use firmware::lstm::LstmDims;
+    use std::path::PathBuf;
+
+    /// `model-export export`.
+    #[derive(Debug, clap::Args)]
+    pub struct ExportArgs {
+        /// Model to export (safetensors written by `train` / `import`). Without it, a
+        /// seeded PyTorch-style initialisation of the size `--dims` (for benchmarks and
+        /// the committed default until a trained model replaces it).
+        #[arg(long)]
+        pub model: Option<PathBuf>,
+        /// Sizes `I,E,H,O` of the seeded network (without `--model`).
+        #[arg(long, value_delimiter = ',', default_value = "9,64,64,3")]
+        pub dims: Vec<usize>,
+        /// Seed of the seeded network.
+        #[arg(long, default_value_t = 1)]
+        pub seed: u64,
+        /// Feature preset of the seeded network (`paper`, `feedforward`, `custom`).
+        #[arg(long, default_value = "paper")]
+        pub preset: String,
+        /// Compensated joints (0-based indices).
+        #[arg(long, value_delimiter = ',', default_value = "3,4,5")]
+        pub joints: Vec<usize>,
+        /// Control rate [Hz].
+        #[arg(long, default_value_t = 100)]
+        pub control_rate_hz: u32,
+        /// Precision.
+        #[arg(long, value_enum, default_value = "int16")]
+        pub precision: Precision,
+        /// Robot description (DH TOML or URDF) whose nominal rigid-body model is
+        /// exported with the network.
+        #[arg(long)]
+        pub robot: Option<PathBuf>,
+        /// Output Rust file (written to a temporary file, then renamed).
+        #[arg(long)]
+        pub out: PathBuf,
+        /// Flash budget file (`host-tests/budgets.toml`): the network must fit the
+        /// board binary's flash limit.
+        #[arg(long)]
+        pub budgets: Option<PathBuf>,
+        /// Steps of golden input in the self-check digest.
+        #[arg(long, default_value_t = 1000)]
+        pub self_check_steps: usize,
+        /// CSV log (columns of the model's `paper` / `feedforward` preset for
+        /// `--joints`): print per output, for every precision streamed over it, the RMS
+        /// against the f32 firmware step and the compensated RMS against the targets
+        /// beside f32's.
+        #[arg(long)]
+        pub accuracy_log: Option<PathBuf>,
+    }
+
+    /// Reads the board's flash limit from a budget file.
+    pub fn flash_budget(path: &std::path::Path) -> Result<u64> {
+        let text =
+            std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+        let v: toml::Value =
+            toml::from_str(&text).with_context(|| format!("parsing {}", path.display()))?;
+        v.get("binary")
+            .and_then(|b| b.get("board"))
+            .and_then(|b| b.get("flash_bytes"))
+            .and_then(toml::Value::as_integer)
+            .map(|x| x as u64)
+            .with_context(|| {
+                format!(
+                    "{}: field `binary.board.flash_bytes` missing",
+                    path.display()
+                )
+            })
+    }
+
+    /// Builds the model to export.
+    pub fn model(a: &ExportArgs) -> Result<LstmModel> {
+        match &a.model {
+            Some(p) => crate::nn::io::read_model(p),
+            None => {
+                let [i, e, h, o] = a.dims[..] else {
+                    bail!("--dims needs 4 sizes I,E,H,O, got {:?}", a.dims);
+                };
+                let mut m = LstmModel::init(
+                    LstmDims {
+                        input: i,
+                        embed: e,
+                        hidden: h,
+                        output: o,
+                    },
+                    a.seed,
+                );
+                m.preset = a.preset.clone();
+                // Feature names of the preset, when the sizes fit it.
+                let spec = match a.preset.as_str() {
+                    "paper" => Some(crate::nn::data::FeatureSpec::paper(&a.joints)),
+                    "feedforward" => Some(crate::nn::data::FeatureSpec::feedforward(&a.joints)),
+                    _ => None,
+                };
+                if let Some(spec) = spec.filter(|s| s.inputs.len() == i && s.targets.len() == o) {
+                    m.output_names = spec.output_names();
+                    m.input_names = spec.inputs;
+                }
+                Ok(m)
+            }
+        }
+    }
+
+    /// Exports `m` to `a.out`; returns the exported network.
+    pub fn export(m: &LstmModel, a: &ExportArgs) -> Result<Exported> {
+        let net = Exported::new(m, a.precision).with_context(|| {
+            format!(
+                "exporting {}",
+                a.model
+                    .as_ref()
+                    .map_or("the seeded network".into(), |p| p.display().to_string())
+            )
+        })?;
+        if let Some(b) = &a.budgets {
+            let budget = flash_budget(b)?;
+            let bytes = net.flash_bytes();
+            if bytes as u64 > budget {
+                return Err(ExportError::TooLarge {
+                    bytes,
+                    budget,
+                    source_file: b.display().to_string(),
+                }
+                .into());
+            }
+        }
+        let dynamics = match &a.robot {
+            Some(p) => {
+                let robot = crate::robot::Robot::load(p)
+                    .with_context(|| format!("reading robot {}", p.display()))?;
+                Some(AnyDynamics::nominal(&robot)?)
+            }
+            None => None,
+        };
+        let meta = ExportMeta {
+            preset: m.preset.clone(),
+            joints: a.joints.clone(),
+            control_rate_hz: a.control_rate_hz,
+            self_check_steps: a.self_check_steps,
+        };
+        let text = render(m, &net, &meta, dynamics.as_ref());
+        crate::nn::write_atomic(&a.out, text.as_bytes())?;
+        // A source file: readable like any other (the temporary file was 0600).
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            std::fs::set_permissions(&a.out, std::fs::Permissions::from_mode(0o644))
+                .with_context(|| format!("setting permissions of {}", a.out.display()))?;
+        }
+        Ok(net)
+    }
+
+    /// Runs the subcommand.
+    pub fn run(a: ExportArgs) -> Result<()> {
+        let m = model(&a)?;
+        let net = export(&m, &a)?;
+        println!(
+            "wrote {} ({}, {} bytes of network arrays)",
+            a.out.display(),
+            a.precision.name(),
+            net.flash_bytes()
+        );
+        if let Some(log) = &a.accuracy_log {
+            let table = crate::nn::data::Table::read(log)?;
+            let spec = match m.preset.as_str() {
+                "paper" => crate::nn::data::FeatureSpec::paper(&a.joints),
+                "feedforward" => crate::nn::data::FeatureSpec::feedforward(&a.joints),
+                other => bail!(
+                    "--accuracy-log needs a `paper` or `feedforward` model (this one: `{other}`)"
+                ),
+            };
+            spec.check_model(&m)
+                .with_context(|| format!("{}", log.display()))?;
+            let seq = spec
+                .sequence(&table)
+                .with_context(|| format!("{}", log.display()))?;
+            println!(
+                "Accuracy on {} ({} steps, streamed from the zero state):\n",
+                log.display(),
+                seq.len()
+            );
+            print!(
+                "{}",
+                accuracy_markdown(&m, &seq.inputs, Some(&seq.targets))?
+            );
+        }
+        Ok(())
+    }
+}
+
+/// Per-output RMS of each precision's streamed output against the f32 firmware step
+/// (`nn::model::LstmModel::stream`), and, with `targets`, each one's RMS error against
+/// the targets ("compensated RMS") beside f32's.
+pub fn accuracy_markdown(
+    m: &LstmModel,
+    inputs: &[Vec<f32>],
+    targets: Option<&[Vec<f32>]>,
+) -> Result<String> {
+    let reference = m.stream(inputs)?;
+    let o = m.dims.output;
+    let rms = |a: &[Vec<f32>], b: &[Vec<f32>], j: usize| -> f64 {
+        let s: f64 = a
+            .iter()
+            .zip(b)
+            .map(|(x, y)| ((x[j] - y[j]) as f64).powi(2))
+            .sum();
+        (s / a.len().max(1) as f64).sqrt()
+    };
+    let mut out = String::new();
+    let _ = writeln!(
+        out,
+        "| precision | output | RMS vs f32 step | compensated RMS | f32 compensated RMS | ratio |"
+    );
+    let _ = writeln!(out, "|---|---|---:|---:|---:|---:|");
+    for p in Precision::ALL {
+        let y = Exported::new(m, p)?.stream(inputs);
+        for j in 0..o {
+            let d = rms(&y, &reference, j);
+            let (c, f, r) = match targets {
+                Some(t) => {
+                    let c = rms(&y, t, j);
+                    let f = rms(&reference, t, j);
+                    (
+                        format!("{c:.5}"),
+                        format!("{f:.5}"),
+                        format!("{:.4}", c / f),
+                    )
+                }
+                None => ("-".into(), "-".into(), "-".into()),
+            };
+            let _ = writeln!(
+                out,
+                "| {} | {} | {d:.3e} | {c} | {f} | {r} |",
+                p.name(),
+                m.output_names[j]
+            );
+        }
+    }
+    Ok(out)
+}

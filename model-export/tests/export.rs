@@ -1,0 +1,158 @@
+//! `model-export export`: the committed golden model files are what the exporter
+//! writes today (deterministic, in sync); quantised outputs track f32; bad input is
+//! refused with a clear error and leaves no file behind.
+use firmware::lstm::LstmDims;
+use model_export::export::{self, ExportError, Exported, Precision, cli::ExportArgs};
+use model_export::nn::model::LstmModel;
+use std::path::{Path, PathBuf};
+
+fn workspace() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .expect("workspace")
+        .to_path_buf()
+}
+
+fn args(out: PathBuf, precision: Precision) -> ExportArgs {
+    ExportArgs {
+        model: None,
+        dims: vec![5, 12, 8, 3],
+        seed: 7,
+        preset: "custom".into(),
+        joints: vec![0, 1, 2],
+        control_rate_hz: 100,
+        precision,
+        robot: None,
+        out,
+        budgets: None,
+        self_check_steps: 10_000,
+        accuracy_log: None,
+    }
+}
+
+#[test]
+fn regenerating_the_golden_models_gives_the_committed_files() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    for p in Precision::ALL {
+        let out = dir.path().join(format!("golden_{}.rs", p.name()));
+        let a = args(out.clone(), p);
+        let m = export::cli::model(&a).expect("model");
+        export::cli::export(&m, &a).expect("export");
+        let fresh = std::fs::read_to_string(&out).expect("read");
+        let committed = workspace().join(format!("firmware/src/model/golden_{}.rs", p.name()));
+        let committed = std::fs::read_to_string(&committed).expect("committed golden file");
+        assert!(
+            fresh == committed,
+            "{}: regenerate with firmware/scripts/regenerate-models.sh",
+            p.name()
+        );
+        assert!(fresh.contains("pub const CONTENT_HASH: u64 = 0x"));
+    }
+}
+
+#[test]
+fn quantised_networks_track_the_f32_step_on_the_pytorch_fixture() {
+    let fx = workspace().join("model-export/tests/fixtures/torch_lstm.safetensors");
+    let m = model_export::nn::io::read_model(&fx).expect("fixture");
+    let inputs = export::golden_inputs(m.dims.input, 400);
+    let table = export::accuracy_markdown(&m, &inputs, None).expect("accuracy");
+    println!("{table}");
+    let reference = m.stream(&inputs).expect("f32");
+    // RMS of the difference to the f32 firmware step, per output, over 400 steps.
+    for (p, tol) in [
+        (Precision::F32, 1e-6f64),
+        (Precision::Int16, 1.5e-3),
+        (Precision::Int8, 3e-3),
+    ] {
+        let y = Exported::new(&m, p).expect("export").stream(&inputs);
+        for j in 0..m.dims.output {
+            let ms = y
+                .iter()
+                .zip(&reference)
+                .map(|(a, b)| ((a[j] - b[j]) as f64).powi(2))
+                .sum::<f64>()
+                / y.len() as f64;
+            assert!(
+                ms.sqrt() <= tol,
+                "{} output {j}: RMS vs f32 {}",
+                p.name(),
+                ms.sqrt()
+            );
+        }
+    }
+}
+
+fn small() -> LstmModel {
+    LstmModel::init(
+        LstmDims {
+            input: 3,
+            embed: 4,
+            hidden: 4,
+            output: 1,
+        },
+        5,
+    )
+}
+
+#[test]
+fn nan_or_infinite_weights_are_refused_naming_the_tensor() {
+    for bad in [f32::NAN, f32::INFINITY] {
+        let mut m = small();
+        m.w_hh[6] = bad;
+        for p in Precision::ALL {
+            let err = Exported::new(&m, p).unwrap_err();
+            assert!(
+                matches!(
+                    err,
+                    ExportError::NotFinite {
+                        tensor: "lstm.weight_hh_l0",
+                        index: 6,
+                        ..
+                    }
+                ),
+                "{err}"
+            );
+            assert!(err.to_string().contains("lstm.weight_hh_l0"), "{err}");
+        }
+    }
+}
+
+#[test]
+fn scales_that_overflow_the_q_format_are_refused() {
+    let mut m = small();
+    for w in m.w_in.iter_mut() {
+        *w *= 1.0e9;
+    }
+    let err = Exported::new(&m, Precision::Int16).unwrap_err();
+    assert!(
+        matches!(err, ExportError::ScaleOverflow { layer: "input", .. }),
+        "{err}"
+    );
+    assert!(err.to_string().contains("overflows the Q3.12"), "{err}");
+    // f32 has no Q format: the same weights export.
+    assert!(Exported::new(&m, Precision::F32).is_ok());
+}
+
+#[test]
+fn a_model_over_the_flash_budget_is_refused_and_writes_nothing() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let budgets = dir.path().join("budgets.toml");
+    std::fs::write(
+        &budgets,
+        "[binary.board]\nflash_bytes = 4096\nram_bytes = 1\nstack_reserve_bytes = 1\n",
+    )
+    .expect("write");
+    let out = dir.path().join("model.rs");
+    let mut a = args(out.clone(), Precision::Int16);
+    a.dims = vec![9, 64, 64, 3];
+    a.budgets = Some(budgets);
+    let m = export::cli::model(&a).expect("model");
+    let err = export::cli::export(&m, &a).unwrap_err();
+    let text = format!("{err:#}");
+    assert!(text.contains("over the budget of 4096 bytes"), "{text}");
+    assert!(!out.exists(), "a refused export left {}", out.display());
+    // The checked-in budget accepts it.
+    a.budgets = Some(workspace().join("host-tests/budgets.toml"));
+    export::cli::export(&m, &a).expect("fits the board budget");
+    assert!(out.exists());
+}
