@@ -42,20 +42,20 @@ pub const SIN_COS_REDUCTION_LIMIT_RAD: f32 = 4096.0;
 // pi/2 = PIO2_HI + PIO2_MID + PIO2_LO. HI and MID have 12 significant bits each, so
 // k * HI and k * MID are exact for |k| < 2^12 (|x| <= 2^12 rad gives |k| <= 2608), and
 // x - k * HI is exact (Sterbenz-like: both are multiples of 2^-24 and |result| < 1).
-const PIO2_HI: f32 = 1.570_800_781_25; // 3217 / 2^11
-const PIO2_MID: f32 = -4.453_584_551_811_218e-6; // -2391 / 2^29
-const PIO2_LO: f32 = -8.705_516_307_827_565e-10; // pi/2 - HI - MID rounded to f32
-const TWO_OVER_PI: f32 = 0.636_619_77;
-const TWO_PI: f32 = 6.283_185_5;
+const PIO2_HI: f32 = 3217.0 / 2048.0; // exact: 1.57080078125
+const PIO2_MID: f32 = -2391.0 / 536_870_912.0; // exact: -2391 / 2^29
+const PIO2_LO: f32 = -8.705_516_3e-10; // pi/2 - HI - MID rounded to f32
+const TWO_OVER_PI: f32 = core::f32::consts::FRAC_2_PI;
+const TWO_PI: f32 = core::f32::consts::TAU;
 
 // Minimax polynomials on [-pi/4, pi/4] (the Cephes sinf/cosf coefficients):
 // sin r = r + r^3 (S1 + r^2 (S2 + r^2 S3)), cos r = 1 - r^2/2 + r^4 (C1 + r^2 (C2 + r^2 C3)).
-const S1: f32 = -1.666_665_461_1e-1;
-const S2: f32 = 8.332_160_873_6e-3;
-const S3: f32 = -1.951_529_589_1e-4;
-const C1: f32 = 4.166_664_568_298_827e-2;
-const C2: f32 = -1.388_731_625_493_765e-3;
-const C3: f32 = 2.443_315_711_809_948e-5;
+const S1: f32 = -0.166_666_55;
+const S2: f32 = 0.008_332_161;
+const S3: f32 = -0.000_195_152_96;
+const C1: f32 = 0.041_666_646;
+const C2: f32 = -0.001_388_731_6;
+const C3: f32 = 2.443_315_7e-5;
 
 /// Sine of an angle in radians (see [`sin_cos`] for accuracy and method).
 #[inline]
