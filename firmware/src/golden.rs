@@ -86,7 +86,7 @@ impl MathFn {
     /// pseudo-random in it (so the sweep also hits non-grid mantissas).
     pub fn input(self, i: usize) -> f32 {
         let (lo, hi) = self.range();
-        let frac = if i % 2 == 0 {
+        let frac = if i.is_multiple_of(2) {
             i as f32 / (MATH_POINTS - 1) as f32
         } else {
             unit(hash(i as u32 ^ (self as u32) << 24))
