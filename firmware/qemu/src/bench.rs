@@ -20,21 +20,17 @@
 use core::fmt::Write;
 use core::hint::black_box;
 use cortex_m::peripheral::{SYST, syst::SystClkSource};
-use cortex_m_rt::{ExceptionFrame, entry, exception};
-use cortex_m_semihosting::{debug, hio};
+use cortex_m_rt::entry;
+use cortex_m_semihosting::hio;
 use firmware::bench::{Visitor, Workload, visit_all};
+
+mod exit;
+use exit::{fail, pass};
 
 /// Ticks per workload (each traced; keep the trace short).
 const TICKS: u32 = 10;
 /// SysTick reload: the 24-bit maximum (one wrap is 671 M instructions).
 const RELOAD: u32 = 0x00ff_ffff;
-
-fn fail() -> ! {
-    debug::exit(debug::EXIT_FAILURE);
-    loop {
-        cortex_m::asm::bkpt();
-    }
-}
 
 /// The driver's empty tick: what the measuring loop costs without a workload.
 #[inline(never)]
@@ -141,24 +137,5 @@ fn main() -> ! {
     if writeln!(d.host, "@pass").is_err() {
         fail();
     }
-    debug::exit(debug::EXIT_SUCCESS);
-    loop {
-        cortex_m::asm::bkpt();
-    }
-}
-
-#[panic_handler]
-fn panic(info: &core::panic::PanicInfo) -> ! {
-    if let Ok(mut host) = hio::hstdout() {
-        let _ = writeln!(host, "@panic {info}");
-    }
-    fail()
-}
-
-#[exception]
-unsafe fn HardFault(frame: &ExceptionFrame) -> ! {
-    if let Ok(mut host) = hio::hstdout() {
-        let _ = writeln!(host, "@hardfault pc={:#010x}", frame.pc());
-    }
-    fail()
+    pass()
 }

@@ -6,11 +6,14 @@
 #![no_main]
 
 use core::fmt::Write;
-use cortex_m_rt::{ExceptionFrame, entry, exception};
-use cortex_m_semihosting::{debug, hio};
+use cortex_m_rt::entry;
+use cortex_m_semihosting::hio;
 use firmware::golden::{self, MathFn};
 use firmware::model::GoldenModel;
 use firmware::quant::golden::STEPS;
+
+mod exit;
+use exit::{fail, pass};
 
 /// Line-buffered semihosting writer: one host call per ~1 KiB, not per line.
 struct Report {
@@ -44,13 +47,6 @@ impl Report {
             fail();
         }
         self.buf.clear();
-    }
-}
-
-fn fail() -> ! {
-    debug::exit(debug::EXIT_FAILURE);
-    loop {
-        cortex_m::asm::bkpt();
     }
 }
 
@@ -105,10 +101,18 @@ fn main() -> ! {
     }
     out.line(format_args!("@end dynamics"));
 
-    out.line(format_args!("@suite lstm {}", golden::LSTM_STEPS * golden::LSTM_O));
+    out.line(format_args!(
+        "@suite lstm {}",
+        golden::LSTM_STEPS * golden::LSTM_O
+    ));
     golden::lstm_stream(|t, y| {
         for (k, v) in y.iter().enumerate() {
-            out.line(format_args!("lstm {} {:08x} {:08x}", t * golden::LSTM_O + k, t as u32, v.to_bits()));
+            out.line(format_args!(
+                "lstm {} {:08x} {:08x}",
+                t * golden::LSTM_O + k,
+                t as u32,
+                v.to_bits()
+            ));
         }
     });
     out.line(format_args!("@end lstm"));
@@ -119,7 +123,13 @@ fn main() -> ! {
         out.line(format_args!("@suite {} {}", g.name(), STEPS * n));
         g.stream(STEPS, &mut |t, y| {
             for (k, v) in y.iter().enumerate() {
-                out.line(format_args!("{} {} {:08x} {:08x}", g.name(), t * n + k, t as u32, v.to_bits()));
+                out.line(format_args!(
+                    "{} {} {:08x} {:08x}",
+                    g.name(),
+                    t * n + k,
+                    t as u32,
+                    v.to_bits()
+                ));
             }
         });
         out.line(format_args!("@end {}", g.name()));
@@ -127,24 +137,5 @@ fn main() -> ! {
 
     out.line(format_args!("@pass"));
     out.flush();
-    debug::exit(debug::EXIT_SUCCESS);
-    loop {
-        cortex_m::asm::bkpt();
-    }
-}
-
-#[panic_handler]
-fn panic(info: &core::panic::PanicInfo) -> ! {
-    if let Ok(mut host) = hio::hstdout() {
-        let _ = writeln!(host, "@panic {info}");
-    }
-    fail()
-}
-
-#[exception]
-unsafe fn HardFault(frame: &ExceptionFrame) -> ! {
-    if let Ok(mut host) = hio::hstdout() {
-        let _ = writeln!(host, "@hardfault pc={:#010x}", frame.pc());
-    }
-    fail()
+    pass()
 }
