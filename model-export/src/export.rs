@@ -7,6 +7,7 @@
 //! The host evaluation of an exported network runs the firmware's own shape-erased
 //! kernels (`QuantView::step`, `F32View::step`) on the exporter's vectors, so the
 //! predictions written into the file (`SELF_CHECK_*`) are what the target computes.
+use crate::dynamics::firmware_model::FirmwareModel;
 use crate::nn::model::LstmModel;
 use anyhow::{Result, bail};
 use firmware::dynamics::RigidBodyModel;
@@ -849,54 +850,16 @@ fn write_dynamics<const N: usize>(s: &mut String, m: &RigidBodyModel<N>) {
     let _ = writeln!(s, "}};");
 }
 
-/// A rigid-body model of any supported joint count (1..=7).
-#[derive(Clone, Debug)]
-pub enum AnyDynamics {
-    /// 1 joint.
-    J1(RigidBodyModel<1>),
-    /// 2 joints.
-    J2(RigidBodyModel<2>),
-    /// 3 joints.
-    J3(RigidBodyModel<3>),
-    /// 4 joints.
-    J4(RigidBodyModel<4>),
-    /// 5 joints.
-    J5(RigidBodyModel<5>),
-    /// 6 joints.
-    J6(RigidBodyModel<6>),
-    /// 7 joints.
-    J7(RigidBodyModel<7>),
-}
-
-impl AnyDynamics {
-    /// The nominal f32 model of a robot description (its standard parameters).
-    pub fn nominal(robot: &crate::robot::Robot) -> Result<Self> {
-        use crate::dynamics::firmware_model::build_firmware_model as b;
-        let th = robot.standard_parameters();
-        Ok(match robot.n_modelled() {
-            1 => AnyDynamics::J1(b(robot, &th)?),
-            2 => AnyDynamics::J2(b(robot, &th)?),
-            3 => AnyDynamics::J3(b(robot, &th)?),
-            4 => AnyDynamics::J4(b(robot, &th)?),
-            5 => AnyDynamics::J5(b(robot, &th)?),
-            6 => AnyDynamics::J6(b(robot, &th)?),
-            7 => AnyDynamics::J7(b(robot, &th)?),
-            n => bail!(
-                "the firmware dynamics export supports 1 to 7 modelled joints, the robot has {n}"
-            ),
-        })
-    }
-
-    fn write(&self, s: &mut String) {
-        match self {
-            AnyDynamics::J1(m) => write_dynamics(s, m),
-            AnyDynamics::J2(m) => write_dynamics(s, m),
-            AnyDynamics::J3(m) => write_dynamics(s, m),
-            AnyDynamics::J4(m) => write_dynamics(s, m),
-            AnyDynamics::J5(m) => write_dynamics(s, m),
-            AnyDynamics::J6(m) => write_dynamics(s, m),
-            AnyDynamics::J7(m) => write_dynamics(s, m),
-        }
+/// Writes the `DYNAMICS` items of the generated file for a model of any joint count.
+fn write_any_dynamics(s: &mut String, d: &FirmwareModel) {
+    match d {
+        FirmwareModel::J1(m) => write_dynamics(s, m),
+        FirmwareModel::J2(m) => write_dynamics(s, m),
+        FirmwareModel::J3(m) => write_dynamics(s, m),
+        FirmwareModel::J4(m) => write_dynamics(s, m),
+        FirmwareModel::J5(m) => write_dynamics(s, m),
+        FirmwareModel::J6(m) => write_dynamics(s, m),
+        FirmwareModel::J7(m) => write_dynamics(s, m),
     }
 }
 
@@ -916,7 +879,7 @@ pub fn render(
     m: &LstmModel,
     net: &Exported,
     meta: &ExportMeta,
-    dynamics: Option<&AnyDynamics>,
+    dynamics: Option<&FirmwareModel>,
 ) -> String {
     let mut body = String::new();
     let preset = match meta.preset.as_str() {
@@ -982,7 +945,7 @@ pub fn render(
         Exported::Int8(n) => write_quant(s, n, "I8Weights", quads_i8),
     }
     if let Some(d) = dynamics {
-        d.write(s);
+        write_any_dynamics(s, d);
     } else {
         let _ = writeln!(
             s,
@@ -1180,7 +1143,7 @@ pub mod cli {
             Some(p) => {
                 let robot = crate::robot::Robot::load(p)
                     .with_context(|| format!("reading robot {}", p.display()))?;
-                Some(AnyDynamics::nominal(&robot)?)
+                Some(FirmwareModel::build(&robot, &robot.standard_parameters())?)
             }
             None => None,
         };

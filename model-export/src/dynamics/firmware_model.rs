@@ -156,3 +156,69 @@ pub fn build_firmware_model<const N: usize>(
         },
     })
 }
+
+/// The firmware's f32 model for any supported joint count (1..=7).
+#[derive(Clone, Debug)]
+pub enum FirmwareModel {
+    /// 1 joint.
+    J1(RigidBodyModel<1>),
+    /// 2 joints.
+    J2(RigidBodyModel<2>),
+    /// 3 joints.
+    J3(RigidBodyModel<3>),
+    /// 4 joints.
+    J4(RigidBodyModel<4>),
+    /// 5 joints.
+    J5(RigidBodyModel<5>),
+    /// 6 joints.
+    J6(RigidBodyModel<6>),
+    /// 7 joints.
+    J7(RigidBodyModel<7>),
+}
+
+fn arr<const N: usize>(v: &[f64]) -> [f32; N] {
+    core::array::from_fn(|i| v[i] as f32)
+}
+
+impl FirmwareModel {
+    /// Builds the f32 model of `robot` with standard parameters `theta`.
+    pub fn build(robot: &Robot, theta: &DVector<f64>) -> anyhow::Result<Self> {
+        Ok(match robot.n_modelled() {
+            1 => Self::J1(build_firmware_model(robot, theta)?),
+            2 => Self::J2(build_firmware_model(robot, theta)?),
+            3 => Self::J3(build_firmware_model(robot, theta)?),
+            4 => Self::J4(build_firmware_model(robot, theta)?),
+            5 => Self::J5(build_firmware_model(robot, theta)?),
+            6 => Self::J6(build_firmware_model(robot, theta)?),
+            7 => Self::J7(build_firmware_model(robot, theta)?),
+            n => anyhow::bail!(
+                "{}: {n} modelled joints; the firmware model supports 1 to 7",
+                robot.source.display()
+            ),
+        })
+    }
+
+    /// Torques [N·m] via `firmware::dynamics::RigidBodyModel::torques` (f32).
+    pub fn torques(&self, q: &[f64], qd: &[f64], qdd: &[f64]) -> Vec<f64> {
+        fn go<const N: usize>(
+            m: &RigidBodyModel<N>,
+            q: &[f64],
+            qd: &[f64],
+            qdd: &[f64],
+        ) -> Vec<f64> {
+            m.torques(&arr(q), &arr(qd), &arr(qdd))
+                .iter()
+                .map(|&t| t as f64)
+                .collect()
+        }
+        match self {
+            Self::J1(m) => go(m, q, qd, qdd),
+            Self::J2(m) => go(m, q, qd, qdd),
+            Self::J3(m) => go(m, q, qd, qdd),
+            Self::J4(m) => go(m, q, qd, qdd),
+            Self::J5(m) => go(m, q, qd, qdd),
+            Self::J6(m) => go(m, q, qd, qdd),
+            Self::J7(m) => go(m, q, qd, qdd),
+        }
+    }
+}

@@ -3,7 +3,7 @@
 use super::pipeline::{self, LinearModel};
 use super::{IdentifyOptions, Weighting};
 use crate::base::BaseParameters;
-use crate::dynamics::firmware_model::build_firmware_model;
+pub use crate::dynamics::firmware_model::FirmwareModel;
 use crate::logs::args::{LayoutArgs, PreprocessArgs};
 use crate::logs::{LogLayout, PreprocessOptions, Samples, preprocess, read_log, sha256_file};
 use crate::model_file::{
@@ -13,7 +13,6 @@ use crate::model_file::{
 use crate::robot::{JointMode, Robot};
 use anyhow::{Context, bail};
 use clap::{Args, ValueEnum};
-use firmware::dynamics::RigidBodyModel;
 use nalgebra::{DMatrix, DVector};
 use std::path::{Path, PathBuf};
 
@@ -159,70 +158,7 @@ impl LinearModel for RobotBaseModel {
     }
 }
 
-/// The firmware's f32 model for any supported joint count (1..=7).
-pub enum FirmwareModel {
-    /// 1 joint.
-    J1(RigidBodyModel<1>),
-    /// 2 joints.
-    J2(RigidBodyModel<2>),
-    /// 3 joints.
-    J3(RigidBodyModel<3>),
-    /// 4 joints.
-    J4(RigidBodyModel<4>),
-    /// 5 joints.
-    J5(RigidBodyModel<5>),
-    /// 6 joints.
-    J6(RigidBodyModel<6>),
-    /// 7 joints.
-    J7(RigidBodyModel<7>),
-}
-
-fn arr<const N: usize>(v: &[f64]) -> [f32; N] {
-    core::array::from_fn(|i| v[i] as f32)
-}
-
 impl FirmwareModel {
-    /// Builds the f32 model of `robot` with standard parameters `theta`.
-    pub fn build(robot: &Robot, theta: &DVector<f64>) -> anyhow::Result<Self> {
-        Ok(match robot.n_modelled() {
-            1 => Self::J1(build_firmware_model(robot, theta)?),
-            2 => Self::J2(build_firmware_model(robot, theta)?),
-            3 => Self::J3(build_firmware_model(robot, theta)?),
-            4 => Self::J4(build_firmware_model(robot, theta)?),
-            5 => Self::J5(build_firmware_model(robot, theta)?),
-            6 => Self::J6(build_firmware_model(robot, theta)?),
-            7 => Self::J7(build_firmware_model(robot, theta)?),
-            n => bail!(
-                "{}: {n} modelled joints; the firmware model supports 1 to 7",
-                robot.source.display()
-            ),
-        })
-    }
-
-    /// Torques [N·m] via `firmware::dynamics::RigidBodyModel::torques` (f32).
-    pub fn torques(&self, q: &[f64], qd: &[f64], qdd: &[f64]) -> Vec<f64> {
-        fn go<const N: usize>(
-            m: &RigidBodyModel<N>,
-            q: &[f64],
-            qd: &[f64],
-            qdd: &[f64],
-        ) -> Vec<f64> {
-            m.torques(&arr(q), &arr(qd), &arr(qdd))
-                .iter()
-                .map(|&t| t as f64)
-                .collect()
-        }
-        match self {
-            Self::J1(m) => go(m, q, qd, qdd),
-            Self::J2(m) => go(m, q, qd, qdd),
-            Self::J3(m) => go(m, q, qd, qdd),
-            Self::J4(m) => go(m, q, qd, qdd),
-            Self::J5(m) => go(m, q, qd, qdd),
-            Self::J6(m) => go(m, q, qd, qdd),
-            Self::J7(m) => go(m, q, qd, qdd),
-        }
-    }
-
     /// Predictions for every sample of a log: `out[joint][sample]`.
     pub fn predict(&self, joints: &[usize], s: &Samples) -> Vec<Vec<f64>> {
         let mut out: Vec<Vec<f64>> = joints.iter().map(|_| Vec::with_capacity(s.len())).collect();
