@@ -287,14 +287,14 @@ pub fn simulate<R: RigidBodyModel + ?Sized>(
 }
 
 /// The built-in default robot's rigid body (UR5e published DH, masses, centres of mass
-/// and inertia tensors; see model-export/README.md).
+/// and inertia tensors) carrying the default 2.5 kg tool; see model-export/README.md.
 pub fn default_arm() -> DhArm {
     use std::f64::consts::FRAC_PI_2;
     let d = [0.1625, 0.0, 0.0, 0.1333, 0.0997, 0.0996];
     let a = [0.0, -0.425, -0.3922, 0.0, 0.0, 0.0];
     let alpha = [FRAC_PI_2, 0.0, 0.0, FRAC_PI_2, -FRAC_PI_2, 0.0];
-    let mass = [3.761, 8.058, 2.846, 1.37, 1.3, 0.365];
-    let com = [
+    let mut mass = [3.761, 8.058, 2.846, 1.37, 1.3, 0.365];
+    let mut com = [
         [0.0, -0.02561, 0.00193],
         [0.2125, 0.0, 0.11336],
         [0.15, 0.0, 0.0265],
@@ -303,7 +303,7 @@ pub fn default_arm() -> DhArm {
         [0.0, 0.0, -0.001159],
     ];
     // [ixx, iyy, izz, ixy, ixz, iyz] about the centre of mass, DH frame axes.
-    let inertia = [
+    let mut inertia = [
         [
             0.0070021,
             0.00648091,
@@ -353,6 +353,13 @@ pub fn default_arm() -> DhArm {
             -0.00000092,
         ],
     ];
+    // The default tool (default.urdf's `tool` link): 2.5 kg, centre of mass
+    // [0, 0.03, 0.07] m in the flange frame (DH frame 6), inertia diag(0.006, 0.006,
+    // 0.003) kg m^2 about it, rigidly added to the last link.
+    (mass[5], com[5], inertia[5]) = combine_rigid_bodies(
+        (mass[5], com[5], inertia[5]),
+        (2.5, [0.0, 0.03, 0.07], [0.006, 0.006, 0.003, 0.0, 0.0, 0.0]),
+    );
     DhArm {
         links: (0..6)
             .map(|i| DhLink {
@@ -366,6 +373,29 @@ pub fn default_arm() -> DhArm {
             })
             .collect(),
     }
+}
+
+/// A rigid body as (mass [kg], centre of mass [m], inertia about the centre of mass
+/// [ixx, iyy, izz, ixy, ixz, iyz] [kg m^2]), all in one frame.
+type MassProperties = (f64, [f64; 3], [f64; 6]);
+
+/// Two rigid bodies fixed together: masses and first moments add, and each inertia
+/// moves to the common centre of mass by the parallel-axis theorem.
+fn combine_rigid_bodies(a: MassProperties, b: MassProperties) -> MassProperties {
+    use nalgebra::{Matrix3, Vector3};
+    let m = a.0 + b.0;
+    let c = (Vector3::from(a.1) * a.0 + Vector3::from(b.1) * b.0) / m;
+    let about_c = |(mi, ci, i): MassProperties| {
+        let t = Matrix3::new(i[0], i[3], i[4], i[3], i[1], i[5], i[4], i[5], i[2]);
+        let d = Vector3::from(ci) - c;
+        t + (Matrix3::identity() * d.dot(&d) - d * d.transpose()) * mi
+    };
+    let t = about_c(a) + about_c(b);
+    (
+        m,
+        c.into(),
+        [t[(0, 0)], t[(1, 1)], t[(2, 2)], t[(0, 1)], t[(0, 2)], t[(1, 2)]],
+    )
 }
 
 /// A robot description ([`crate::robot::Robot`], from DH TOML or URDF) as the plant's
