@@ -59,6 +59,9 @@ pub enum Command {
     Simulate(crate::sim::cli::SimulateArgs),
     /// Identify rigid body + friction on simulated logs and print the per-joint uncompensated RMS table.
     PlantReport(crate::sim::cli::PlantReportArgs),
+    /// The main job: the whole pipeline on the built-in default robot (the paper's wrist
+    /// setup), every stage as its own subcommand, into one report folder (Markdown + JSON).
+    Demo(crate::demo::DemoArgs),
     /// Quantise a model (f32 / int16 / int8) and write ONE Rust source file of fixed-size
     /// arrays in the firmware kernels' layout (with normalisation, feature preset,
     /// joints, control rate, dynamics, schema version, content hash and a self-check
@@ -172,6 +175,10 @@ pub struct EvaluateArgs {
     /// Report (JSON).
     #[arg(long)]
     pub report: Option<PathBuf>,
+    /// Folder for the paper's Figures 12 and 13 (measured, predicted and error torque
+    /// before and after compensation) of the first log.
+    #[arg(long)]
+    pub figures: Option<PathBuf>,
 }
 
 /// `import` options.
@@ -281,8 +288,11 @@ fn evaluate_cmd(a: EvaluateArgs) -> Result<()> {
     spec.check_model(&model)
         .with_context(|| format!("{}", a.model.display()))?;
     let mut reports = Vec::new();
-    for (p, s) in a.data.iter().zip(load(&a.data, &spec)?) {
+    for (i, (p, s)) in a.data.iter().zip(load(&a.data, &spec)?).enumerate() {
         let rows = eval::evaluate(&model, &s)?;
+        if let (0, Some(dir)) = (i, &a.figures) {
+            plot::compensation_figures(&model, &s, dir)?;
+        }
         println!(
             "{} ({} steps, streamed):\n{}",
             p.display(),
@@ -385,6 +395,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Simulate(args) => crate::sim::cli::run_simulate(&args),
         Command::PlantReport(args) => crate::sim::cli::run_plant_report(&args),
         Command::Export(a) => crate::export::cli::run(a),
+        Command::Demo(a) => crate::demo::demo(&a),
     }
 }
 

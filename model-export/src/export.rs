@@ -1047,6 +1047,10 @@ pub mod cli {
         /// exported with the network.
         #[arg(long)]
         pub robot: Option<PathBuf>,
+        /// Identified model of `--robot` (JSON from `identify`): its parameters and
+        /// joint selection replace the nominal ones.
+        #[arg(long, requires = "robot")]
+        pub identified: Option<PathBuf>,
         /// Output Rust file (written to a temporary file, then renamed).
         #[arg(long)]
         pub out: PathBuf,
@@ -1058,11 +1062,14 @@ pub mod cli {
         #[arg(long, default_value_t = 1000)]
         pub self_check_steps: usize,
         /// CSV log (columns of the model's `paper` / `feedforward` preset for
-        /// `--joints`): print per output, for every precision streamed over it, the RMS
+        /// `--joints`, named 1-based as `model-export torque --dataset` writes them): print per output, for every precision streamed over it, the RMS
         /// against the f32 firmware step and the compensated RMS against the targets
         /// beside f32's.
         #[arg(long)]
         pub accuracy_log: Option<PathBuf>,
+        /// With `--accuracy-log`: also write the accuracy rows as JSON here.
+        #[arg(long, requires = "accuracy_log")]
+        pub accuracy_json: Option<PathBuf>,
     }
 
     /// Reads the board's flash limit from a budget file.
@@ -1102,10 +1109,11 @@ pub mod cli {
                     a.seed,
                 );
                 m.preset = a.preset.clone();
-                // Feature names of the preset, when the sizes fit it.
+                // Feature names of the preset (1-based joint numbers), when the sizes fit it.
+                let numbers: Vec<usize> = a.joints.iter().map(|j| j + 1).collect();
                 let spec = match a.preset.as_str() {
-                    "paper" => Some(crate::nn::data::FeatureSpec::paper(&a.joints)),
-                    "feedforward" => Some(crate::nn::data::FeatureSpec::feedforward(&a.joints)),
+                    "paper" => Some(crate::nn::data::FeatureSpec::paper(&numbers)),
+                    "feedforward" => Some(crate::nn::data::FeatureSpec::feedforward(&numbers)),
                     _ => None,
                 };
                 if let Some(spec) = spec.filter(|s| s.inputs.len() == i && s.targets.len() == o) {
@@ -1139,13 +1147,17 @@ pub mod cli {
                 .into());
             }
         }
-        let dynamics = match &a.robot {
-            Some(p) => {
+        let dynamics = match (&a.robot, &a.identified) {
+            (Some(p), Some(identified)) => {
+                let (robot, theta) = crate::identify::commands::load_identified(p, identified)?;
+                Some(FirmwareModel::build(&robot, &theta)?)
+            }
+            (Some(p), None) => {
                 let robot = crate::robot::Robot::load(p)
                     .with_context(|| format!("reading robot {}", p.display()))?;
                 Some(FirmwareModel::build(&robot, &robot.standard_parameters())?)
             }
-            None => None,
+            (None, _) => None,
         };
         let meta = ExportMeta {
             preset: m.preset.clone(),
@@ -1177,9 +1189,10 @@ pub mod cli {
         );
         if let Some(log) = &a.accuracy_log {
             let table = crate::nn::data::Table::read(log)?;
+            let numbers: Vec<usize> = a.joints.iter().map(|j| j + 1).collect();
             let spec = match m.preset.as_str() {
-                "paper" => crate::nn::data::FeatureSpec::paper(&a.joints),
-                "feedforward" => crate::nn::data::FeatureSpec::feedforward(&a.joints),
+                "paper" => crate::nn::data::FeatureSpec::paper(&numbers),
+                "feedforward" => crate::nn::data::FeatureSpec::feedforward(&numbers),
                 other => bail!(
                     "--accuracy-log needs a `paper` or `feedforward` model (this one: `{other}`)"
                 ),
@@ -1194,25 +1207,40 @@ pub mod cli {
                 log.display(),
                 seq.len()
             );
-            print!(
-                "{}",
-                accuracy_markdown(&m, &seq.inputs, Some(&seq.targets))?
-            );
+            let rows = accuracy(&m, &seq.inputs, Some(&seq.targets))?;
+            print!("{}", accuracy_markdown(&rows));
+            if let Some(path) = &a.accuracy_json {
+                crate::nn::write_atomic(path, serde_json::to_string_pretty(&rows)?.as_bytes())?;
+            }
         }
         Ok(())
     }
 }
 
+/// One precision's accuracy on one output.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct AccuracyRow {
+    /// Precision name (`f32`, `int16`, `int8`).
+    pub precision: &'static str,
+    /// Output name.
+    pub output: String,
+    /// RMS of the precision's streamed output against the f32 firmware step.
+    pub rms_vs_f32: f64,
+    /// RMS error against the targets ("compensated RMS"), with targets.
+    pub compensated_rms: Option<f64>,
+    /// f32's compensated RMS, with targets.
+    pub f32_compensated_rms: Option<f64>,
+}
+
 /// Per-output RMS of each precision's streamed output against the f32 firmware step
 /// (`nn::model::LstmModel::stream`), and, with `targets`, each one's RMS error against
 /// the targets ("compensated RMS") beside f32's.
-pub fn accuracy_markdown(
+pub fn accuracy(
     m: &LstmModel,
     inputs: &[Vec<f32>],
     targets: Option<&[Vec<f32>]>,
-) -> Result<String> {
+) -> Result<Vec<AccuracyRow>> {
     let reference = m.stream(inputs)?;
-    let o = m.dims.output;
     let rms = |a: &[Vec<f32>], b: &[Vec<f32>], j: usize| -> f64 {
         let s: f64 = a
             .iter()
@@ -1221,35 +1249,44 @@ pub fn accuracy_markdown(
             .sum();
         (s / a.len().max(1) as f64).sqrt()
     };
+    let mut rows = Vec::new();
+    for p in Precision::ALL {
+        let y = Exported::new(m, p)?.stream(inputs);
+        for j in 0..m.dims.output {
+            rows.push(AccuracyRow {
+                precision: p.name(),
+                output: m.output_names[j].clone(),
+                rms_vs_f32: rms(&y, &reference, j),
+                compensated_rms: targets.map(|t| rms(&y, t, j)),
+                f32_compensated_rms: targets.map(|t| rms(&reference, t, j)),
+            });
+        }
+    }
+    Ok(rows)
+}
+
+/// [`accuracy`] as a Markdown table (ratio = compensated RMS / f32's).
+pub fn accuracy_markdown(rows: &[AccuracyRow]) -> String {
     let mut out = String::new();
     let _ = writeln!(
         out,
         "| precision | output | RMS vs f32 step | compensated RMS | f32 compensated RMS | ratio |"
     );
     let _ = writeln!(out, "|---|---|---:|---:|---:|---:|");
-    for p in Precision::ALL {
-        let y = Exported::new(m, p)?.stream(inputs);
-        for j in 0..o {
-            let d = rms(&y, &reference, j);
-            let (c, f, r) = match targets {
-                Some(t) => {
-                    let c = rms(&y, t, j);
-                    let f = rms(&reference, t, j);
-                    (
-                        format!("{c:.5}"),
-                        format!("{f:.5}"),
-                        format!("{:.4}", c / f),
-                    )
-                }
-                None => ("-".into(), "-".into(), "-".into()),
-            };
-            let _ = writeln!(
-                out,
-                "| {} | {} | {d:.3e} | {c} | {f} | {r} |",
-                p.name(),
-                m.output_names[j]
-            );
-        }
+    for r in rows {
+        let (c, f, ratio) = match (r.compensated_rms, r.f32_compensated_rms) {
+            (Some(c), Some(f)) => (
+                format!("{c:.5}"),
+                format!("{f:.5}"),
+                format!("{:.4}", c / f),
+            ),
+            _ => ("-".into(), "-".into(), "-".into()),
+        };
+        let _ = writeln!(
+            out,
+            "| {} | {} | {:.3e} | {c} | {f} | {ratio} |",
+            r.precision, r.output, r.rms_vs_f32
+        );
     }
-    Ok(out)
+    out
 }

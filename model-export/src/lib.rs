@@ -5,6 +5,7 @@
 
 pub mod base;
 pub mod cli;
+pub mod demo;
 pub mod dynamics;
 pub mod excite;
 pub mod export;

@@ -27,6 +27,8 @@ fn args(out: PathBuf, precision: Precision) -> ExportArgs {
         budgets: None,
         self_check_steps: 10_000,
         accuracy_log: None,
+        identified: None,
+        accuracy_json: None,
     }
 }
 
@@ -55,7 +57,7 @@ fn quantised_networks_track_the_f32_step_on_the_pytorch_fixture() {
     let fx = workspace().join("model-export/tests/fixtures/torch_lstm.safetensors");
     let m = model_export::nn::io::read_model(&fx).expect("fixture");
     let inputs = export::golden_inputs(m.dims.input, 400);
-    let table = export::accuracy_markdown(&m, &inputs, None).expect("accuracy");
+    let table = export::accuracy_markdown(&export::accuracy(&m, &inputs, None).expect("accuracy"));
     println!("{table}");
     let reference = m.stream(&inputs).expect("f32");
     // RMS of the difference to the f32 firmware step, per output, over 400 steps.

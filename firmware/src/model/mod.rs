@@ -53,7 +53,8 @@ pub enum Precision {
 /// Which features the network reads (see `model-export`'s `nn::data`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum FeaturePreset {
-    /// Per joint: model torque, measured torque, position (3 per joint).
+    /// Per joint: model torque, measured torque, position (3 per joint); each output is
+    /// the next-step measured torque's increment over the measured torque given.
     Paper,
     /// Per joint: model torque, position, velocity (3 per joint).
     Feedforward,
@@ -67,6 +68,17 @@ impl FeaturePreset {
         match self {
             FeaturePreset::Paper | FeaturePreset::Feedforward => 3,
             FeaturePreset::Custom => 0,
+        }
+    }
+
+    /// The joint torque an output stands for, N*m: `Paper` adds the measured torque
+    /// (the network predicts the increment), `Feedforward` the model torque (it
+    /// predicts the residual), `Custom` takes the output as it is.
+    pub fn torque_nm(self, output: f32, measured_nm: f32, model_nm: f32) -> f32 {
+        match self {
+            FeaturePreset::Paper => measured_nm + output,
+            FeaturePreset::Feedforward => model_nm + output,
+            FeaturePreset::Custom => output,
         }
     }
 

@@ -21,6 +21,7 @@ fn main() -> std::process::ExitCode {
 
 fn run() -> Result<bool> {
     let mut json = false;
+    let mut json_file = None;
     let mut file = budget::default_budget_file();
     let mut opts = Options::default();
     let mut args = std::env::args().skip(1);
@@ -28,12 +29,13 @@ fn run() -> Result<bool> {
         let mut value = || args.next().with_context(|| format!("{a} needs a value"));
         match a.as_str() {
             "--json" => json = true,
+            "--json-file" => json_file = Some(PathBuf::from(value()?)),
             "--budgets" => file = PathBuf::from(value()?),
             "--opt-level" => opts.opt_level = Some(value()?),
             "--pipeline-refill" => opts.model.pipeline_refill = value()?.parse()?,
             "-h" | "--help" => {
                 println!(
-                    "usage: budget [--json] [--budgets FILE] [--opt-level 2|3|s|z] [--pipeline-refill P]"
+                    "usage: budget [--json] [--json-file FILE] [--budgets FILE] [--opt-level 2|3|s|z] [--pipeline-refill P]"
                 );
                 return Ok(true);
             }
@@ -42,6 +44,10 @@ fn run() -> Result<bool> {
     }
     let budgets = Budgets::load(&file)?;
     let report = budget::report(budget::measure(&opts)?, budgets);
+    if let Some(path) = &json_file {
+        std::fs::write(path, report.json()?)
+            .with_context(|| format!("writing {}", path.display()))?;
+    }
     if json {
         println!("{}", report.json()?);
     } else {

@@ -105,6 +105,12 @@ pub struct TorqueArgs {
     /// Preprocessing.
     #[command(flatten)]
     pub pre: PreprocessArgs,
+    /// Write the LSTM compensation dataset instead (`model-export train` reads it):
+    /// `time_s`, then per modelled joint N (1-based robot joint number) `q_jN` [rad],
+    /// `qd_jN` [rad/s], `tau_meas_jN` and `tau_model_jN` [N·m]. Use it with
+    /// `--trim-rest-rad-s 0 --torque-cutoff-hz 0` to keep every sample as the drive logged it.
+    #[arg(long)]
+    pub dataset: bool,
 }
 
 /// Seed of the random states from which base parameters are computed (fixed, so a
@@ -500,6 +506,72 @@ pub fn identify(a: &IdentifyArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// The robot and its standard parameters from an identified model file (JSON from
+/// `identify`): checks that the robot file is the one identified (SHA-256), applies the
+/// model's joint selection and terms, and maps the base parameters back.
+pub fn load_identified(robot_path: &Path, mp: &Path) -> anyhow::Result<(Robot, DVector<f64>)> {
+    let file = ModelFile::read(mp)?;
+    let hash = sha256_file(robot_path)
+        .with_context(|| format!("{}: cannot read", robot_path.display()))?;
+    if hash != file.robot.sha256 {
+        bail!(
+            "{}: robot file differs from the one the model was identified for ({}, sha256 {})",
+            robot_path.display(),
+            file.robot.source_path,
+            file.robot.sha256
+        );
+    }
+    // Joint selection and model terms come from the model file.
+    let mut robot = Robot::load(robot_path)?;
+    robot.model_all_joints();
+    let t = &file.model_terms;
+    robot.terms.viscous_friction = t.viscous_friction;
+    robot.terms.coulomb_friction = t.coulomb_friction;
+    robot.terms.friction_offset = t.friction_offset;
+    robot.terms.coulomb_smoothing_rad_s = t.coulomb_smoothing_rad_s;
+    robot.terms.rotor_inertia = t.rotor_inertia;
+    if file.base_seed != BASE_SEED {
+        bail!(
+            "{}, field base_seed: {} (this build computes base parameters with seed {BASE_SEED})",
+            mp.display(),
+            file.base_seed
+        );
+    }
+    for l in &file.locked_joints {
+        let i = robot
+            .joints
+            .iter()
+            .position(|x| x.name == l.name)
+            .with_context(|| {
+                format!(
+                    "{}, field locked_joints: no joint '{}' in the robot",
+                    mp.display(),
+                    l.name
+                )
+            })?;
+        robot.lock_joint(i, l.position_rad);
+    }
+    let model = RobotBaseModel::new(robot)?;
+    let names = model.parameter_names();
+    let expr = model.expressions();
+    if names.len() != file.base_parameters.len()
+        || file
+            .base_parameters
+            .iter()
+            .zip(names.iter().zip(&expr))
+            .any(|(b, (n, e))| &b.name != n || &b.expression != e)
+    {
+        bail!(
+            "{}, field base_parameters: they do not match the base parameters of {} with this joint selection and model terms (--friction-offset, --coulomb-smoothing-rad-s)",
+            mp.display(),
+            robot_path.display()
+        );
+    }
+    let beta = DVector::from_iterator(names.len(), file.base_parameters.iter().map(|b| b.value));
+    let theta = model.equivalent_standard(&beta);
+    Ok((model.robot, theta))
+}
+
 /// Runs `torque`.
 pub fn torque(a: &TorqueArgs) -> anyhow::Result<()> {
     let layout = a.layout.layout()?;
@@ -510,69 +582,7 @@ pub fn torque(a: &TorqueArgs) -> anyhow::Result<()> {
             let theta = robot.standard_parameters();
             (robot, theta)
         }
-        Some(mp) => {
-            let file = ModelFile::read(mp)?;
-            let hash = sha256_file(&a.robot)
-                .with_context(|| format!("{}: cannot read", a.robot.display()))?;
-            if hash != file.robot.sha256 {
-                bail!(
-                    "{}: robot file differs from the one the model was identified for ({}, sha256 {})",
-                    a.robot.display(),
-                    file.robot.source_path,
-                    file.robot.sha256
-                );
-            }
-            // Joint selection and model terms come from the model file.
-            let mut robot = Robot::load(&a.robot)?;
-            robot.model_all_joints();
-            let t = &file.model_terms;
-            robot.terms.viscous_friction = t.viscous_friction;
-            robot.terms.coulomb_friction = t.coulomb_friction;
-            robot.terms.friction_offset = t.friction_offset;
-            robot.terms.coulomb_smoothing_rad_s = t.coulomb_smoothing_rad_s;
-            robot.terms.rotor_inertia = t.rotor_inertia;
-            if file.base_seed != BASE_SEED {
-                bail!(
-                    "{}, field base_seed: {} (this build computes base parameters with seed {BASE_SEED})",
-                    mp.display(),
-                    file.base_seed
-                );
-            }
-            for l in &file.locked_joints {
-                let i = robot
-                    .joints
-                    .iter()
-                    .position(|x| x.name == l.name)
-                    .with_context(|| {
-                        format!(
-                            "{}, field locked_joints: no joint '{}' in the robot",
-                            mp.display(),
-                            l.name
-                        )
-                    })?;
-                robot.lock_joint(i, l.position_rad);
-            }
-            let model = RobotBaseModel::new(robot)?;
-            let names = model.parameter_names();
-            let expr = model.expressions();
-            if names.len() != file.base_parameters.len()
-                || file
-                    .base_parameters
-                    .iter()
-                    .zip(names.iter().zip(&expr))
-                    .any(|(b, (n, e))| &b.name != n || &b.expression != e)
-            {
-                bail!(
-                    "{}, field base_parameters: they do not match the base parameters of {} with this joint selection and model terms (--friction-offset, --coulomb-smoothing-rad-s)",
-                    mp.display(),
-                    a.robot.display()
-                );
-            }
-            let beta =
-                DVector::from_iterator(names.len(), file.base_parameters.iter().map(|b| b.value));
-            let theta = model.equivalent_standard(&beta);
-            (model.robot, theta)
-        }
+        Some(mp) => load_identified(&a.robot, mp)?,
     };
     let fw = FirmwareModel::build(&robot, &theta)?;
     let joints = robot.modelled_joints();
@@ -587,29 +597,11 @@ pub fn torque(a: &TorqueArgs) -> anyhow::Result<()> {
     }
     let s = preprocess(&raw, &pre)?;
     let pred = fw.predict(&joints, &s);
-    let mut out = String::new();
-    out.push_str("time_s");
-    for &j in &joints {
-        out.push_str(&format!(",tau_model_{}_nm", robot.joints[j].name));
-    }
-    if s.torque_nm.is_some() {
-        for &j in &joints {
-            out.push_str(&format!(",tau_measured_{}_nm", robot.joints[j].name));
-        }
-    }
-    out.push('\n');
-    for k in 0..s.len() {
-        out.push_str(&format!("{:.6}", s.time_s[k]));
-        for p in &pred {
-            out.push_str(&format!(",{:.6}", p[k]));
-        }
-        if let Some(t) = &s.torque_nm {
-            for &j in &joints {
-                out.push_str(&format!(",{:.6}", t[j][k]));
-            }
-        }
-        out.push('\n');
-    }
+    let out = if a.dataset {
+        compensation_dataset_csv(&a.log, &joints, &s, &pred)?
+    } else {
+        named_torque_csv(&robot, &joints, &s, &pred)
+    };
     write_atomic(&a.output, out.as_bytes())?;
     if let Some(acc) = pipeline::errors(&pred, &joints, &s) {
         let e = acc.finish();
@@ -625,4 +617,67 @@ pub fn torque(a: &TorqueArgs) -> anyhow::Result<()> {
     }
     println!("wrote {} ({} samples)", a.output.display(), s.len());
     Ok(())
+}
+
+/// `torque`'s default output: time, then the model and measured torque per modelled joint.
+fn named_torque_csv(robot: &Robot, joints: &[usize], s: &Samples, pred: &[Vec<f64>]) -> String {
+    let mut out = String::new();
+    out.push_str("time_s");
+    for &j in joints {
+        out.push_str(&format!(",tau_model_{}_nm", robot.joints[j].name));
+    }
+    if s.torque_nm.is_some() {
+        for &j in joints {
+            out.push_str(&format!(",tau_measured_{}_nm", robot.joints[j].name));
+        }
+    }
+    out.push('\n');
+    for k in 0..s.len() {
+        out.push_str(&format!("{:.6}", s.time_s[k]));
+        for p in pred {
+            out.push_str(&format!(",{:.6}", p[k]));
+        }
+        if let Some(t) = &s.torque_nm {
+            for &j in joints {
+                out.push_str(&format!(",{:.6}", t[j][k]));
+            }
+        }
+        out.push('\n');
+    }
+    out
+}
+
+/// `torque --dataset`: the compensation dataset (`nn::data` column names).
+fn compensation_dataset_csv(
+    log: &Path,
+    joints: &[usize],
+    s: &Samples,
+    pred: &[Vec<f64>],
+) -> anyhow::Result<String> {
+    let Some(tau) = &s.torque_nm else {
+        bail!(
+            "{}: no torque or current columns; a compensation dataset needs the measured torque",
+            log.display()
+        );
+    };
+    let mut out = String::from("time_s");
+    for kind in ["q", "qd", "tau_meas", "tau_model"] {
+        for &j in joints {
+            out.push_str(&format!(",{kind}_j{}", j + 1));
+        }
+    }
+    out.push('\n');
+    for k in 0..s.len() {
+        out.push_str(&format!("{:.6}", s.time_s[k]));
+        for series in [&s.q_rad, &s.qd_rad_s, tau] {
+            for &j in joints {
+                out.push_str(&format!(",{:.6}", series[j][k]));
+            }
+        }
+        for p in pred {
+            out.push_str(&format!(",{:.6}", p[k]));
+        }
+        out.push('\n');
+    }
+    Ok(out)
 }

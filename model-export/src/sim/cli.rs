@@ -101,8 +101,13 @@ pub struct SimulateArgs {
     pub plant: PlantArgs,
     /// Commanded trajectory: Fourier coefficients (.json, from `model-export excite`) or a
     /// playback CSV with header t, q1.., qd1.., qdd1.. (any other extension).
-    #[arg(long)]
-    pub trajectory: PathBuf,
+    #[arg(long, required_unless_present = "random_trajectory")]
+    pub trajectory: Option<PathBuf>,
+    /// Instead of --trajectory: the seeded rest-to-rest 5-harmonic Fourier trajectory
+    /// (10 s period, |q| <= 2.5 rad, |qd| <= 2.5 rad/s, |qdd| <= 10 rad/s^2) with this
+    /// seed, one joint per --joints entry: varied data for training the LSTM.
+    #[arg(long, conflicts_with = "trajectory", value_name = "SEED")]
+    pub random_trajectory: Option<u64>,
     /// Robot joints (1-based, comma separated) driven by the trajectory's joints, in
     /// order; default: the excitation file's `layout.moving`, else 1..n. Example for the
     /// paper's wrist: 4,5,6.
@@ -190,16 +195,33 @@ pub fn run_simulate(args: &SimulateArgs) -> anyhow::Result<()> {
     let arm = super::RobotRigidBody::new(&robot);
     let dof = robot.dof();
     let plant = load_plant(&args.plant)?;
-    let traj = CommandedTrajectory::load(&args.trajectory, args.periods)?;
-    let layout = super::trajectory::excitation_layout(&args.trajectory)
-        .filter(|(m, f)| m.len() == traj.joint_count() && f.len() == dof);
+    let (traj, layout) = match (&args.trajectory, args.random_trajectory) {
+        (Some(path), _) => {
+            let traj = CommandedTrajectory::load(path, args.periods)?;
+            let layout = super::trajectory::excitation_layout(path)
+                .filter(|(m, f)| m.len() == traj.joint_count() && f.len() == dof);
+            (traj, layout)
+        }
+        (None, seed) => {
+            ensure!(
+                !args.joints.is_empty(),
+                "--random-trajectory needs --joints (the robot joints it drives)"
+            );
+            let n = args.joints.len();
+            let seed = seed.unwrap_or_default();
+            (trajectory_or_seeded(&None, args.periods, seed, n)?, None)
+        }
+    };
+    let source = args.trajectory.as_ref().map_or_else(
+        || "the seeded trajectory".into(),
+        |p| p.display().to_string(),
+    );
     let driven = if let (true, Some((moving, _))) = (args.joints.is_empty(), &layout) {
         moving.clone()
     } else if args.joints.is_empty() {
         ensure!(
             traj.joint_count() <= dof,
-            "{}: trajectory has {} joints, robot {dof}",
-            args.trajectory.display(),
+            "{source}: trajectory has {} joints, robot {dof}",
             traj.joint_count()
         );
         (0..traj.joint_count()).collect()

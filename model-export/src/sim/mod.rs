@@ -394,7 +394,14 @@ fn combine_rigid_bodies(a: MassProperties, b: MassProperties) -> MassProperties 
     (
         m,
         c.into(),
-        [t[(0, 0)], t[(1, 1)], t[(2, 2)], t[(0, 1)], t[(0, 2)], t[(1, 2)]],
+        [
+            t[(0, 0)],
+            t[(1, 1)],
+            t[(2, 2)],
+            t[(0, 1)],
+            t[(0, 2)],
+            t[(1, 2)],
+        ],
     )
 }
 

@@ -1,0 +1,750 @@
+//! `model-export demo`: the README's main job. On the built-in default robot and the
+//! paper's setup (joints 1-3 locked at zero, 4-6 moving) it runs every stage as the
+//! stage's own subcommand, in process, with the command line printed and recorded, so
+//! that running the recorded commands one by one reproduces every figure: excitation
+//! design (training and test trajectory), simulated logging, identification, the LSTM
+//! datasets, training (paper configuration), evaluation, quantisation and export, the
+//! firmware build for the board, the size and cycle budget run and the closed-loop
+//! simulation. It writes one report folder: `report.md` (the paper's results section:
+//! Table 2 beside ours, Figures 3, 4, 10, 12 and 13, the budget and closed-loop tables)
+//! and `report.json` (the figures behind it), plus every stage's own outputs.
+use crate::cli::{Cli, run};
+use anyhow::{Context, Result, bail};
+use clap::Parser;
+use serde_json::{Value, json};
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::Instant;
+
+/// `model-export demo`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct DemoArgs {
+    /// Report folder (created; every stage writes below it).
+    #[arg(long, default_value = "demo-report")]
+    pub out: PathBuf,
+    /// The fast variant (CI): a short excitation search, short logs, a few epochs. The
+    /// report says which variant produced it.
+    #[arg(long)]
+    pub fast: bool,
+    /// Skip the stages that need the firmware toolchain (the board build for
+    /// thumbv7em-none-eabihf and the QEMU budget run).
+    #[arg(long)]
+    pub no_firmware: bool,
+    /// Also copy the exported model to `firmware/src/model/default_model.rs`, the
+    /// committed default the firmware builds with.
+    #[arg(long)]
+    pub install: bool,
+}
+
+/// What differs between the full and the fast variant.
+#[derive(Clone, Debug)]
+struct Variant {
+    name: &'static str,
+    excite_restarts: usize,
+    excite_evaluations: usize,
+    identification_periods: usize,
+    test_periods: usize,
+    /// Seeds of the extra LSTM training logs (seeded random trajectories).
+    lstm_log_seeds: std::ops::Range<u64>,
+    lstm_log_periods: usize,
+    epochs: usize,
+    patience: usize,
+}
+
+const FULL: Variant = Variant {
+    name: "full",
+    excite_restarts: 4,
+    excite_evaluations: 6000,
+    identification_periods: 6,
+    test_periods: 3,
+    lstm_log_seeds: 101..111,
+    lstm_log_periods: 3,
+    epochs: 150,
+    patience: 15,
+};
+
+const FAST: Variant = Variant {
+    name: "fast (CI)",
+    excite_restarts: 1,
+    excite_evaluations: 300,
+    identification_periods: 2,
+    test_periods: 1,
+    lstm_log_seeds: 101..103,
+    lstm_log_periods: 1,
+    epochs: 2,
+    patience: 2,
+};
+
+/// Learning rate of the demo's training (chosen on validation loss among the paper's
+/// 0.05 and 0.01 / 0.003 / 0.001 on the default robot; `train --lr` without a value
+/// repeats that choice).
+const DEMO_LR: &str = "0.003";
+
+/// The paper's Table 2 (uncompensated, compensated RMS [N m], reduction [%]), joints 4-6.
+const PAPER_TABLE2: [(usize, f64, f64, f64); 3] = [
+    (4, 3.61, 1.21, 66.5),
+    (5, 4.84, 1.02, 78.9),
+    (6, 6.10, 2.33, 61.8),
+];
+
+/// One executed stage: its command line and wall time.
+#[derive(Clone, Debug, serde::Serialize)]
+struct StageRecord {
+    stage: String,
+    command: String,
+    seconds: f64,
+    status: String,
+}
+
+/// Runs the stages in order and keeps their records.
+struct Pipeline {
+    records: Vec<StageRecord>,
+}
+
+impl Pipeline {
+    /// Runs one subcommand in process (`args` without the program name).
+    fn stage(&mut self, stage: &str, args: &[String]) -> Result<()> {
+        let command = format!("model-export {}", shell_words(args));
+        println!("\n==> [{stage}] {command}");
+        let t0 = Instant::now();
+        let cli = Cli::try_parse_from(
+            std::iter::once("model-export".to_string()).chain(args.iter().cloned()),
+        )
+        .with_context(|| format!("stage {stage}: bad arguments"))?;
+        let result = run(cli).with_context(|| format!("stage {stage}"));
+        self.record(
+            stage,
+            command,
+            t0,
+            result.as_ref().map(|_| ()).map_err(|e| format!("{e:#}")),
+        )?;
+        result
+    }
+
+    /// Runs a cargo command in the workspace (`FIRMWARE_MODEL` set to `model`).
+    fn cargo(&mut self, stage: &str, args: &[&str], model: &Path) -> Result<String> {
+        let command = format!(
+            "FIRMWARE_MODEL={} cargo {}",
+            model.display(),
+            args.join(" ")
+        );
+        println!("\n==> [{stage}] {command}");
+        let t0 = Instant::now();
+        let out = Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()))
+            .current_dir(workspace_root())
+            .args(args)
+            .env("FIRMWARE_MODEL", model)
+            .stderr(std::process::Stdio::inherit())
+            .output()
+            .with_context(|| format!("stage {stage}: running cargo"));
+        let result = match out {
+            Ok(o) if o.status.success() => Ok(String::from_utf8_lossy(&o.stdout).into_owned()),
+            Ok(o) => Err(anyhow::anyhow!(
+                "stage {stage}: cargo {} failed ({}):\n{}",
+                args.join(" "),
+                o.status,
+                String::from_utf8_lossy(&o.stdout)
+            )),
+            Err(e) => Err(e),
+        };
+        self.record(
+            stage,
+            command,
+            t0,
+            result.as_ref().map(|_| ()).map_err(|e| format!("{e:#}")),
+        )?;
+        result
+    }
+
+    fn record(
+        &mut self,
+        stage: &str,
+        command: String,
+        t0: Instant,
+        result: std::result::Result<(), String>,
+    ) -> Result<()> {
+        let seconds = t0.elapsed().as_secs_f64();
+        let status = match &result {
+            Ok(()) => "ok".to_string(),
+            Err(e) => format!("failed: {e}"),
+        };
+        println!("<== [{stage}] {status} in {seconds:.1} s");
+        self.records.push(StageRecord {
+            stage: stage.into(),
+            command,
+            seconds,
+            status,
+        });
+        Ok(())
+    }
+}
+
+/// The workspace root (the demo drives cargo there for the firmware stages).
+fn workspace_root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .map(Path::to_path_buf)
+        .unwrap_or_else(|| PathBuf::from("."))
+}
+
+/// Arguments joined for display (quoted where a shell would need it).
+fn shell_words(args: &[String]) -> String {
+    args.iter()
+        .map(|a| {
+            if a.is_empty() || a.contains(|c: char| c.is_whitespace() || "'\"$*?".contains(c)) {
+                format!("'{a}'")
+            } else {
+                a.clone()
+            }
+        })
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
+fn s(x: impl ToString) -> String {
+    x.to_string()
+}
+
+fn p(path: &Path) -> String {
+    path.display().to_string()
+}
+
+fn read_json(path: &Path) -> Result<Value> {
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+    serde_json::from_str(&text).with_context(|| format!("parsing {}", path.display()))
+}
+
+/// The columns of a simulated log for `identify` / `torque` (header row, torque columns).
+fn sim_layout() -> Vec<String> {
+    [
+        "--layout",
+        "torque",
+        "--header",
+        "yes",
+        "--torque-cols",
+        "20,21,22,23,24,25",
+    ]
+    .map(s)
+    .to_vec()
+}
+
+/// Runs the demo.
+pub fn demo(a: &DemoArgs) -> Result<()> {
+    let v = if a.fast { FAST } else { FULL };
+    let t_start = Instant::now();
+    let out = &a.out;
+    if out.exists() && !out.is_dir() {
+        bail!("{}: exists and is not a folder", out.display());
+    }
+    let dirs = ["excite", "logs", "data", "model", "firmware", "figures"];
+    for d in dirs {
+        std::fs::create_dir_all(out.join(d))
+            .with_context(|| format!("creating {}", out.join(d).display()))?;
+    }
+    let robot = crate::sim::cli::DEFAULT_ROBOT;
+    let mut pl = Pipeline {
+        records: Vec::new(),
+    };
+    println!(
+        "model-export demo ({} variant): default robot {robot}, joints 4-6 moving, 1-3 locked at 0; report in {}",
+        v.name,
+        out.display()
+    );
+
+    // 1. Excitation design: the training trajectory and the test trajectory (q(3.8 s) = 0).
+    let excite = out.join("excite");
+    for (name, seed, extra) in [("train", "1", None), ("test", "2", Some("3.8"))] {
+        let mut args = vec![
+            s("excite"),
+            s("--robot"),
+            s(robot),
+            s("--joints"),
+            s("wrist"),
+            s("--restarts"),
+            v.excite_restarts.to_string(),
+            s("--evaluations"),
+            v.excite_evaluations.to_string(),
+            s("--seed"),
+            s(seed),
+            s("--out-dir"),
+            p(&excite),
+            s("--name"),
+            s(name),
+        ];
+        if let Some(t) = extra {
+            args.extend([s("--zero-at"), s(t)]);
+        }
+        pl.stage(&format!("excite {name}"), &args)?;
+    }
+
+    // 2. Simulated logging: identification and test runs along the designed
+    //    trajectories, plus seeded random trajectories for the LSTM.
+    let logs = out.join("logs");
+    let sim = |pl: &mut Pipeline, name: &str, traj: Vec<String>, periods: usize, seed: u64| {
+        let mut args = vec![s("simulate")];
+        args.extend(traj);
+        args.extend([
+            s("--periods"),
+            periods.to_string(),
+            s("--seed"),
+            seed.to_string(),
+            s("-o"),
+            p(&logs.join(format!("{name}.csv"))),
+        ]);
+        pl.stage(&format!("simulate {name}"), &args)
+    };
+    let traj = |f: &str| vec![s("--trajectory"), p(&excite.join(f))];
+    sim(
+        &mut pl,
+        "train",
+        traj("train.json"),
+        v.identification_periods,
+        10,
+    )?;
+    sim(&mut pl, "test", traj("test.json"), v.test_periods, 11)?;
+    let mut lstm_logs = vec![s("train")];
+    for seed in v.lstm_log_seeds.clone() {
+        let name = format!("random{seed}");
+        let t = vec![
+            s("--random-trajectory"),
+            seed.to_string(),
+            s("--joints"),
+            s("4,5,6"),
+        ];
+        sim(&mut pl, &name, t, v.lstm_log_periods, seed)?;
+        lstm_logs.push(name);
+    }
+
+    // 3. Identification on the training run, validated on the test run.
+    let model_dir = out.join("model");
+    let identified = model_dir.join("identified.json");
+    let mut args = vec![
+        s("identify"),
+        s("--robot"),
+        s(robot),
+        s("--log"),
+        p(&logs.join("train.csv")),
+        s("--validate"),
+        p(&logs.join("test.csv")),
+        s("--lock"),
+        s("1=0,2=0,3=0"),
+        s("-o"),
+        p(&identified),
+    ];
+    args.extend(sim_layout());
+    pl.stage("identify", &args)?;
+
+    // 4. Compensation datasets: every sample as logged, with the model's torque.
+    let data = out.join("data");
+    for name in lstm_logs.iter().chain(std::iter::once(&s("test"))) {
+        let mut args = vec![
+            s("torque"),
+            s("--robot"),
+            s(robot),
+            s("--model"),
+            p(&identified),
+            s("--log"),
+            p(&logs.join(format!("{name}.csv"))),
+            s("--dataset"),
+            s("--trim-rest-rad-s"),
+            s("0"),
+            s("--torque-cutoff-hz"),
+            s("0"),
+            s("-o"),
+            p(&data.join(format!("{name}.csv"))),
+        ];
+        args.extend(sim_layout());
+        pl.stage(&format!("dataset {name}"), &args)?;
+    }
+
+    // 5. LSTM training, the paper's configuration and preset.
+    let figures = out.join("figures");
+    let lstm = model_dir.join("lstm.safetensors");
+    let train_data: Vec<String> = lstm_logs
+        .iter()
+        .map(|n| p(&data.join(format!("{n}.csv"))))
+        .collect();
+    pl.stage(
+        "train",
+        &[
+            s("train"),
+            s("--data"),
+            train_data.join(","),
+            s("--preset"),
+            s("paper"),
+            s("--joints"),
+            s("4,5,6"),
+            s("--epochs"),
+            v.epochs.to_string(),
+            s("--patience"),
+            v.patience.to_string(),
+            s("--lr"),
+            s(DEMO_LR),
+            s("--test-fraction"),
+            s("0.05"),
+            s("--out"),
+            p(&lstm),
+            s("--loss-plot"),
+            p(&figures.join("fig10_loss.svg")),
+            s("--report"),
+            p(&model_dir.join("train.json")),
+            s("--quiet"),
+        ],
+    )?;
+
+    // 6. Evaluation on the whole test run, streamed through the firmware f32 step.
+    let test_data = data.join("test.csv");
+    pl.stage(
+        "evaluate",
+        &[
+            s("evaluate"),
+            s("--model"),
+            p(&lstm),
+            s("--data"),
+            p(&test_data),
+            s("--preset"),
+            s("paper"),
+            s("--joints"),
+            s("4,5,6"),
+            s("--report"),
+            p(&model_dir.join("evaluate.json")),
+            s("--figures"),
+            p(&figures),
+        ],
+    )?;
+
+    // 7. Quantisation and export (int16, the firmware default), with the accuracy of
+    //    every precision on the test run.
+    let fw_model = out.join("firmware").join("model.rs");
+    pl.stage(
+        "export",
+        &[
+            s("export"),
+            s("--model"),
+            p(&lstm),
+            s("--robot"),
+            s(robot),
+            s("--identified"),
+            p(&identified),
+            s("--joints"),
+            s("3,4,5"),
+            s("--precision"),
+            s("int16"),
+            s("--budgets"),
+            p(&workspace_root().join("host-tests/budgets.toml")),
+            s("--out"),
+            p(&fw_model),
+            s("--accuracy-log"),
+            p(&test_data),
+            s("--accuracy-json"),
+            p(&model_dir.join("accuracy.json")),
+        ],
+    )?;
+    if a.install {
+        let dst = workspace_root().join("firmware/src/model/default_model.rs");
+        std::fs::copy(&fw_model, &dst)
+            .with_context(|| format!("copying {} to {}", fw_model.display(), dst.display()))?;
+        println!("installed {} as {}", fw_model.display(), dst.display());
+    }
+
+    // 8. Firmware build for the board and the size / cycle budget run.
+    let fw_model_abs = std::fs::canonicalize(&fw_model)
+        .with_context(|| format!("resolving {}", fw_model.display()))?;
+    let budget = if a.no_firmware {
+        println!("\n(firmware build and budget run skipped: --no-firmware)");
+        None
+    } else {
+        pl.cargo(
+            "firmware build",
+            &[
+                "build",
+                "--release",
+                "--target",
+                "thumbv7em-none-eabihf",
+                "-p",
+                "firmware",
+                "--bin",
+                "board",
+                "--features",
+                "board",
+            ],
+            &fw_model_abs,
+        )?;
+        let json_file = std::path::absolute(out.join("firmware").join("budget.json"))
+            .context("resolving the report folder")?;
+        let markdown = pl.cargo(
+            "budget",
+            &[
+                "run",
+                "--quiet",
+                "--target-dir",
+                "target/demo",
+                "-p",
+                "host-tests",
+                "--bin",
+                "budget",
+                "--",
+                "--json-file",
+                &p(&json_file),
+            ],
+            &fw_model_abs,
+        )?;
+        crate::nn::write_atomic(&out.join("firmware").join("budget.md"), markdown.as_bytes())?;
+        read_json(&json_file)?; // the budget run wrote valid JSON
+        Some(markdown)
+    };
+
+    // 9. Report.
+    let total_s = t_start.elapsed().as_secs_f64();
+    let report = Report::gather(out, &v, &pl.records, budget.as_ref(), total_s)?;
+    crate::nn::write_atomic(
+        &out.join("report.json"),
+        serde_json::to_string_pretty(&report.json)?.as_bytes(),
+    )?;
+    crate::nn::write_atomic(&out.join("report.md"), report.markdown.as_bytes())?;
+    println!("\n{}", report.summary);
+    println!(
+        "wrote {} and {} ({total_s:.1} s in all)",
+        out.join("report.md").display(),
+        out.join("report.json").display()
+    );
+    Ok(())
+}
+
+/// The report's Markdown, JSON and terminal summary.
+struct Report {
+    markdown: String,
+    json: Value,
+    summary: String,
+}
+
+impl Report {
+    fn gather(
+        out: &Path,
+        v: &Variant,
+        records: &[StageRecord],
+        budget: Option<&String>,
+        total_s: f64,
+    ) -> Result<Self> {
+        let excite_train = read_json(&out.join("excite/train.json"))?;
+        let excite_test = read_json(&out.join("excite/test.json"))?;
+        let identified = read_json(&out.join("model/identified.json"))?;
+        let train = read_json(&out.join("model/train.json"))?;
+        let evaluate = read_json(&out.join("model/evaluate.json"))?;
+        let accuracy = read_json(&out.join("model/accuracy.json"))?;
+        let rows = evaluate["data"][0]["outputs"]
+            .as_array()
+            .cloned()
+            .unwrap_or_default();
+
+        let mut md = String::new();
+        let _ = writeln!(md, "# Torque compensation on the default robot: results\n");
+        let _ = writeln!(
+            md,
+            "Produced by `model-export demo` ({} variant{}) in {total_s:.0} s. Robot: the built-in \
+             UR5e-class arm with a 2.5 kg tool (`model-export/robots/default.toml`, true plant \
+             `default.plant.toml`); the paper's setup: joints 1-3 locked at 0, joints 4-6 \
+             moving. Every figure below comes from a stage command listed at the end; running \
+             those commands one by one prints the same numbers.\n",
+            v.name,
+            if v.name == FULL.name {
+                ""
+            } else {
+                ": few epochs and short logs, a pipeline check, not the product's accuracy"
+            }
+        );
+
+        let _ = writeln!(md, "## Excitation trajectories (Figures 3 and 4)\n");
+        let _ = writeln!(
+            md,
+            "5-harmonic Fourier series, period {:.1} s, rest to rest, optimised for the condition \
+             number of the base-parameter observation matrix under the joints' position, velocity \
+             and acceleration limits.\n",
+            2.0 * std::f64::consts::PI / excite_train["omega_rad_s"].as_f64().unwrap_or(f64::NAN)
+        );
+        let _ = writeln!(
+            md,
+            "| trajectory | condition number | evaluations |\n|---|---:|---:|"
+        );
+        for (name, e) in [
+            ("training (Figure 3)", &excite_train),
+            ("test, q(3.8 s) = 0 (Figure 4)", &excite_test),
+        ] {
+            let _ = writeln!(
+                md,
+                "| {name} | {:.2} | {} |",
+                e["score"]["condition"].as_f64().unwrap_or(f64::NAN),
+                e["evaluations"]
+            );
+        }
+        let _ = writeln!(
+            md,
+            "\n![Figure 3: training trajectory](excite/train.svg)\n\n![Figure 4: test trajectory](excite/test.svg)\n"
+        );
+
+        let _ = writeln!(md, "## Identification\n");
+        let _ = writeln!(
+            md,
+            "Least squares on the training run: {} base parameters, condition number {:.1}.\n",
+            identified["base_parameters"].as_array().map_or(0, Vec::len),
+            identified["condition_number"].as_f64().unwrap_or(f64::NAN)
+        );
+        let _ = writeln!(
+            md,
+            "| data | joint 4 RMS [N m] | joint 5 | joint 6 |\n|---|---:|---:|---:|"
+        );
+        for e in identified["errors"].as_array().into_iter().flatten() {
+            let r: Vec<String> = e["rms_nm"]
+                .as_array()
+                .into_iter()
+                .flatten()
+                .map(|x| format!("{:.3}", x.as_f64().unwrap_or(f64::NAN)))
+                .collect();
+            let _ = writeln!(
+                md,
+                "| {} | {} |",
+                e["data"].as_str().unwrap_or("?"),
+                r.join(" | ")
+            );
+        }
+
+        let _ = writeln!(
+            md,
+            "\n## Table 2: RMS torque error on the test trajectory\n"
+        );
+        let _ = writeln!(
+            md,
+            "Next-step measured torque predicted by the identified model alone (uncompensated) \
+             and by the LSTM (compensated, the firmware's f32 step streamed over the whole test \
+             run from a zero state); persistence predicts τ(t+1) = τ(t).\n"
+        );
+        let _ = writeln!(
+            md,
+            "| joint | paper uncompensated | paper compensated | paper reduction % | ours uncompensated | ours compensated | ours reduction % | persistence |\n|---|---:|---:|---:|---:|---:|---:|---:|"
+        );
+        let mut table2 = Vec::new();
+        for ((joint, pu, pc, pr), r) in PAPER_TABLE2.iter().zip(&rows) {
+            let f = |k: &str| r[k].as_f64().unwrap_or(f64::NAN);
+            let _ = writeln!(
+                md,
+                "| {joint} | {pu:.2} | {pc:.2} | {pr:.1} | {:.3} | {:.3} | {:.1} | {:.3} |",
+                f("rms_before"),
+                f("rms_after"),
+                f("reduction_pct"),
+                f("rms_persistence")
+            );
+            table2.push(json!({
+                "joint": joint,
+                "paper": {"uncompensated_nm": pu, "compensated_nm": pc, "reduction_pct": pr},
+                "ours": {"uncompensated_nm": f("rms_before"), "compensated_nm": f("rms_after"),
+                         "reduction_pct": f("reduction_pct"), "persistence_nm": f("rms_persistence")},
+            }));
+        }
+        let _ = writeln!(
+            md,
+            "\nTraining: learning rate {}, best epoch {} of {} (Figure 10).\n\n\
+             ![Figure 10: loss](figures/fig10_loss.svg)\n\n\
+             ![Figure 12: before compensation](figures/fig12_before.svg)\n\n\
+             ![Figure 13: after compensation](figures/fig13_after.svg)\n",
+            train["lr"],
+            train["best_epoch"].as_u64().map_or(0, |e| e + 1),
+            train["epochs"]
+        );
+
+        let _ = writeln!(
+            md,
+            "## Quantised networks (the firmware's kernels, streamed on the test run)\n"
+        );
+        let _ = writeln!(
+            md,
+            "| precision | output | compensated RMS [N m] | f32 compensated RMS | ratio |\n|---|---|---:|---:|---:|"
+        );
+        for r in accuracy.as_array().into_iter().flatten() {
+            let c = r["compensated_rms"].as_f64().unwrap_or(f64::NAN);
+            let f = r["f32_compensated_rms"].as_f64().unwrap_or(f64::NAN);
+            let _ = writeln!(
+                md,
+                "| {} | {} | {c:.4} | {f:.4} | {:.4} |",
+                r["precision"].as_str().unwrap_or("?"),
+                r["output"].as_str().unwrap_or("?"),
+                c / f
+            );
+        }
+
+        let _ = writeln!(md, "\n## Firmware size and cycle budget\n");
+        match budget {
+            Some(b) => {
+                let _ = writeln!(
+                    md,
+                    "The board binary with this model compiled in, and the budget workloads. Cycle \
+                     figures are estimated Cortex-M4 cycles from the QEMU instruction trace weighted \
+                     by the Cortex-M4 timing tables, not measured cycles.\n"
+                );
+                md.push_str(b);
+            }
+            None => {
+                let _ = writeln!(md, "Skipped (`--no-firmware`).");
+            }
+        }
+
+        let _ = writeln!(
+            md,
+            "\n## Stages\n\n| stage | seconds | status | command |\n|---|---:|---|---|"
+        );
+        for r in records {
+            let _ = writeln!(
+                md,
+                "| {} | {:.1} | {} | `{}` |",
+                r.stage, r.seconds, r.status, r.command
+            );
+        }
+
+        let mut summary = String::from("Summary\n");
+        let _ = writeln!(
+            summary,
+            "{:<10} {:>14} {:>14} {:>12} {:>12}",
+            "joint", "uncompensated", "compensated", "reduction %", "persistence"
+        );
+        for t in &table2 {
+            let o = &t["ours"];
+            let _ = writeln!(
+                summary,
+                "{:<10} {:>14.3} {:>14.3} {:>12.1} {:>12.3}",
+                t["joint"],
+                o["uncompensated_nm"].as_f64().unwrap_or(f64::NAN),
+                o["compensated_nm"].as_f64().unwrap_or(f64::NAN),
+                o["reduction_pct"].as_f64().unwrap_or(f64::NAN),
+                o["persistence_nm"].as_f64().unwrap_or(f64::NAN)
+            );
+        }
+        for r in records {
+            let _ = writeln!(
+                summary,
+                "  {:<22} {:>7.1} s  {}",
+                r.stage, r.seconds, r.status
+            );
+        }
+        let _ = write!(summary, "  {:<22} {:>7.1} s", "total", total_s);
+
+        let json = json!({
+            "variant": v.name,
+            "total_seconds": total_s,
+            "stages": records,
+            "excitation": {"train": excite_train["score"], "test": excite_test["score"]},
+            "identification": {"condition_number": identified["condition_number"], "errors": identified["errors"]},
+            "table2": table2,
+            "training": {"lr": train["lr"], "best_epoch": train["best_epoch"], "epochs": train["epochs"],
+                          "train_loss": train["train_loss"], "val_loss": train["val_loss"]},
+            "evaluation": evaluate,
+            "quantisation": accuracy,
+            "budget": budget.map(|_| read_json(&out.join("firmware/budget.json"))).transpose()?,
+        });
+        Ok(Report {
+            markdown: md,
+            json,
+            summary,
+        })
+    }
+}
