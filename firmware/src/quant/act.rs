@@ -98,31 +98,51 @@ pub static SIGMOID_Q15: [i16; 513] = [
     32756, 32756, 32756, 32757, 32757, 32757,
 ];
 
-/// Table value at `|x|` (Q3.12, 0..=32768) with linear interpolation (Q0.15).
+/// A table as words of `(y_k, y_{k+1} - y_k)` (low, high half), `k = 0..512`: one
+/// load per lookup instead of two (computed at compile time from the table).
+const fn pairs(t: &[i16; TABLE_LEN]) -> [u32; TABLE_LEN - 1] {
+    let mut out = [0u32; TABLE_LEN - 1];
+    let mut k = 0;
+    while k < TABLE_LEN - 1 {
+        let d = t[k + 1] as i32 - t[k] as i32;
+        out[k] = (t[k] as u16 as u32) | ((d as u32) << 16);
+        k += 1;
+    }
+    out
+}
+
+static TANH_PAIRS: [u32; TABLE_LEN - 1] = pairs(&TANH_Q15);
+static SIGMOID_PAIRS: [u32; TABLE_LEN - 1] = pairs(&SIGMOID_Q15);
+
+/// Table value at `|x|` (Q3.12, 0..=32768) with linear interpolation (Q0.15):
+/// `y0 + ((y1 - y0) * frac + 32) >> 6`.
 #[inline(always)]
-fn lookup(table: &[i16; TABLE_LEN], a: i32) -> i32 {
+fn lookup(pairs: &[u32; TABLE_LEN - 1], a: i32) -> i32 {
     let a = if a > 32767 { 32767 } else { a };
-    let idx = ((a >> 6) & 511) as usize;
-    let frac = a & 63;
-    let y0 = table[idx] as i32;
-    let y1 = table[idx + 1] as i32;
-    y0 + (((y1 - y0) * frac + 32) >> 6)
+    let w = pairs[((a >> 6) & 511) as usize];
+    let y0 = w as u16 as i16 as i32;
+    let d = (w as i32) >> 16;
+    y0 + ((d * (a & 63) + 32) >> 6)
 }
 
 /// tanh: Q3.12 in, Q0.15 out (saturates to +-32767 beyond +-8).
 #[inline(always)]
 pub fn tanh_q15(x: i16) -> i16 {
+    // Branch-free odd symmetry: s = -1 for negative x, (v ^ s) - s = |v| or -v.
     let x = x as i32;
-    let y = lookup(&TANH_Q15, x.abs());
-    (if x < 0 { -y } else { y }) as i16
+    let s = x >> 31;
+    let y = lookup(&TANH_PAIRS, (x ^ s) - s);
+    ((y ^ s) - s) as i16
 }
 
 /// Logistic sigmoid: Q3.12 in, Q0.15 out (0..=32767).
 #[inline(always)]
 pub fn sigmoid_q15(x: i16) -> i16 {
+    // Branch-free point symmetry: 32768 - y for negative x.
     let x = x as i32;
-    let y = lookup(&SIGMOID_Q15, x.abs());
-    (if x < 0 { 32768 - y } else { y }) as i16
+    let s = x >> 31;
+    let y = lookup(&SIGMOID_PAIRS, (x ^ s) - s);
+    (((y ^ s) - s) + (s & 32768)) as i16
 }
 
 #[cfg(test)]
@@ -137,6 +157,28 @@ mod tests {
             let s = ((1.0 / (1.0 + (-x).exp()) * 32768.0).round() as i32).min(32767);
             assert_eq!(TANH_Q15[k] as i32, t, "tanh {k}");
             assert_eq!(SIGMOID_Q15[k] as i32, s, "sigmoid {k}");
+        }
+    }
+
+    /// The definition the kernels implement (two table reads, sign by branches).
+    fn reference(table: &[i16; TABLE_LEN], x: i16, odd: bool) -> i16 {
+        let x = x as i32;
+        let a = x.abs().min(32767);
+        let (idx, frac) = ((a >> 6) as usize, a & 63);
+        let (y0, y1) = (table[idx] as i32, table[idx + 1] as i32);
+        let y = y0 + (((y1 - y0) * frac + 32) >> 6);
+        (match (x < 0, odd) {
+            (false, _) => y,
+            (true, true) => -y,
+            (true, false) => 32768 - y,
+        }) as i16
+    }
+
+    #[test]
+    fn pair_tables_give_the_reference_interpolation() {
+        for x in i16::MIN..=i16::MAX {
+            assert_eq!(tanh_q15(x), reference(&TANH_Q15, x, true), "tanh {x}");
+            assert_eq!(sigmoid_q15(x), reference(&SIGMOID_Q15, x, false), "sigmoid {x}");
         }
     }
 
