@@ -119,30 +119,43 @@ pub fn dot4_f32(acc: [f32; 4], w: &[[f32; 4]], x: &[f32]) -> [f32; 4] {
     }
 }
 
-/// A whole int16 layer: for every 4-row block `b`, `acc[b] = dot4_i16(acc[b],
-/// w[b * Q..(b + 1) * Q], x)` with `Q = x.len()` quads (the caller puts the biases in
-/// `acc`); `min(acc.len(), w.len() / Q)` blocks. One call per layer keeps the
-/// per-block overhead inside the assembly (about 30 estimated cycles per block) and
-/// the inner loop at 4 quads (64 MACs) per iteration with LDRD for the inputs.
+/// A whole int16 layer: for every 4-row block `b`, `acc[b] = dot4_i16(bias[b],
+/// w[b * Q..(b + 1) * Q], x)` with `Q = x.len()` quads;
+/// `min(acc.len(), bias.len(), w.len() / Q)` blocks (with `Q == 0`, `acc[b] =
+/// bias[b]`). One call per layer keeps the per-block overhead inside the assembly
+/// (about 35 estimated cycles per block) and the inner loop at 8 quads (128 MACs)
+/// per iteration with LDRD for the inputs and LDM for the weights.
 #[inline(always)]
-pub fn matvec4_i16(acc: &mut [[i32; 4]], w: &[[[u32; 4]; 2]], x: &[[u32; 2]]) {
+pub fn matvec4_i16(acc: &mut [[i32; 4]], bias: &[[i32; 4]], w: &[[[u32; 4]; 2]], x: &[[u32; 2]]) {
     let q = x.len();
     if q == 0 {
+        for (a, b) in acc.iter_mut().zip(bias) {
+            *a = *b;
+        }
         return;
     }
-    let blocks = acc.len().min(w.len() / q);
+    let blocks = acc.len().min(bias.len()).min(w.len() / q);
     if blocks == 0 {
         return;
     }
     #[cfg(fw_dsp_asm)]
     {
         // SAFETY: blocks > 0 blocks of q > 0 quads of `w`, q quads of `x`, blocks
-        // accumulators, all in bounds by the computation above.
-        unsafe { asm::matvec4_i16(acc.as_mut_ptr(), w.as_ptr(), x.as_ptr(), q, blocks) }
+        // biases and accumulators, all in bounds by the computation above.
+        unsafe {
+            asm::matvec4_i16(
+                acc.as_mut_ptr(),
+                bias.as_ptr(),
+                w.as_ptr(),
+                x.as_ptr(),
+                q,
+                blocks,
+            )
+        }
     }
     #[cfg(not(fw_dsp_asm))]
     {
-        portable::matvec4_i16(&mut acc[..blocks], w, x)
+        portable::matvec4_i16(&mut acc[..blocks], bias, w, x)
     }
 }
 
@@ -207,9 +220,20 @@ pub mod portable {
 
     /// Portable [`super::matvec4_i16`].
     #[inline(always)]
-    pub fn matvec4_i16(acc: &mut [[i32; 4]], w: &[[[u32; 4]; 2]], x: &[[u32; 2]]) {
-        for (a, wb) in acc.iter_mut().zip(w.chunks_exact(x.len().max(1))) {
-            *a = dot4_i16(*a, wb, x);
+    pub fn matvec4_i16(
+        acc: &mut [[i32; 4]],
+        bias: &[[i32; 4]],
+        w: &[[[u32; 4]; 2]],
+        x: &[[u32; 2]],
+    ) {
+        if x.is_empty() {
+            for (a, b) in acc.iter_mut().zip(bias) {
+                *a = *b;
+            }
+            return;
+        }
+        for ((a, b), wb) in acc.iter_mut().zip(bias).zip(w.chunks_exact(x.len())) {
+            *a = dot4_i16(*b, wb, x);
         }
     }
 
@@ -405,47 +429,56 @@ mod asm {
         };
     }
 
-    /// The int16 layer: per block, accumulators from `acc`, `q / 4` iterations of 4
-    /// quads, then `q % 4` single quads, accumulators back to `acc`. The loop-invariant
-    /// values (x base, q, blocks left, accumulator pointer) live in 16 bytes of stack
-    /// that the block pushes and pops itself, so 13 registers carry the inner loop.
+    /// The int16 layer: per block, accumulators from `bias`, `q / 8` iterations of 8
+    /// quads, then `q % 8` single quads, accumulators to `acc`. The loop-invariant
+    /// values (x base, q, blocks left, bias and accumulator pointers) live in 24 bytes
+    /// of stack that the block reserves and frees itself, so 13 registers carry the
+    /// inner loop.
     ///
     /// # Safety
-    /// `acc` valid for `blocks > 0` blocks (read and written), `w` for `blocks * q`
+    /// `acc` (written) and `bias` valid for `blocks > 0` blocks, `w` for `blocks * q`
     /// quads, `x` for `q > 0` quads.
     #[inline(always)]
     pub unsafe fn matvec4_i16(
         acc: *mut [i32; 4],
+        bias: *const [i32; 4],
         w: *const [[u32; 4]; 2],
         x: *const [u32; 2],
         q: usize,
         blocks: usize,
     ) {
         // SAFETY (caller: pointers valid as documented): per block the loops read q
-        // quads of `x` and of `w` (w advances block after block), read and write one
-        // `[i32; 4]` of `acc`; sp is restored; only declared registers and the flags
-        // are written.
+        // quads of `x` and of `w` (w advances block after block), one `[i32; 4]` of
+        // `bias` and write one of `acc`; sp is restored; only declared registers and
+        // the flags are written.
         unsafe {
             asm!(
-                "sub sp, sp, #16",
+                "sub sp, sp, #24",
                 "strd {a0}, {a1}, [sp]",
                 "strd {a2}, {a3}, [sp, #8]",
+                "str {x0}, [sp, #16]",
                 "2:",
-                "ldr {x0}, [sp, #12]",
+                "ldr {x0}, [sp, #16]",
                 "ldrd {a0}, {a1}, [{x0}]",
                 "ldrd {a2}, {a3}, [{x0}, #8]",
+                "adds {x0}, {x0}, #16",
+                "str {x0}, [sp, #16]",
                 "ldrd {xp}, {n}, [sp]",
-                "subs {n}, {n}, #4",
+                "subs {n}, {n}, #8",
                 "blo 4f",
                 "3:",
                 quad_i16_d!(),
                 quad_i16_d!(),
                 quad_i16_d!(),
                 quad_i16_d!(),
-                "subs {n}, {n}, #4",
+                quad_i16_d!(),
+                quad_i16_d!(),
+                quad_i16_d!(),
+                quad_i16_d!(),
+                "subs {n}, {n}, #8",
                 "bhs 3b",
                 "4:",
-                "adds {n}, {n}, #4",
+                "adds {n}, {n}, #8",
                 "beq 6f",
                 "5:",
                 quad_i16_d!(),
@@ -461,12 +494,12 @@ mod asm {
                 "subs {x1}, {x1}, #1",
                 "str {x1}, [sp, #8]",
                 "bne 2b",
-                "add sp, sp, #16",
+                "add sp, sp, #24",
                 a0 = inout(reg) x => _,
                 a1 = inout(reg) q => _,
                 a2 = inout(reg) blocks => _,
                 a3 = inout(reg) acc => _,
-                x0 = out(reg) _,
+                x0 = inout(reg) bias => _,
                 x1 = out(reg) _,
                 xp = out(reg) _,
                 n = out(reg) _,
@@ -749,11 +782,26 @@ mod tests {
         });
         let x: [[u32; 2]; Q] =
             core::array::from_fn(|q| core::array::from_fn(|p| word(700 + (2 * q + p) as u32)));
-        let mut acc = [[1, 2, 3, 4], [-5, 6, -7, 8], [0; 4]];
+        let bias = [[1, 2, 3, 4], [-5, 6, -7, 8], [0; 4]];
         let want: [[i32; 4]; 3] =
-            core::array::from_fn(|b| dot4_i16(acc[b], &w[b * Q..(b + 1) * Q], &x));
-        matvec4_i16(&mut acc, &w, &x);
+            core::array::from_fn(|b| dot4_i16(bias[b], &w[b * Q..(b + 1) * Q], &x));
+        let mut acc = [[7; 4]; 3];
+        matvec4_i16(&mut acc, &bias, &w, &x);
         assert_eq!(acc, want);
+        // 2 blocks of 19 quads: two 8-quad iterations and 3 single quads.
+        let w19: [[[u32; 4]; 2]; 38] = core::array::from_fn(|q| {
+            core::array::from_fn(|p| core::array::from_fn(|r| word(3000 + (q * 8 + p * 4 + r) as u32)))
+        });
+        let x19: [[u32; 2]; 19] =
+            core::array::from_fn(|q| core::array::from_fn(|p| word(4000 + (2 * q + p) as u32)));
+        let mut acc2 = [[0; 4]; 2];
+        matvec4_i16(&mut acc2, &bias[..2], &w19, &x19);
+        for b in 0..2 {
+            assert_eq!(acc2[b], dot4_i16(bias[b], &w19[b * 19..(b + 1) * 19], &x19));
+        }
+        let mut copy = [[0; 4]; 2];
+        matvec4_i16(&mut copy, &bias[..2], &w19, &[]);
+        assert_eq!(copy, [bias[0], bias[1]]);
         // f32: 2 blocks of 11 columns (one 8-column iteration and 3 single columns).
         const N: usize = 11;
         let wf: [[f32; 4]; 2 * N] = core::array::from_fn(|k| {

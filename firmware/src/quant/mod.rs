@@ -79,12 +79,13 @@ pub trait WeightFormat {
     const MAX_WEIGHT: i32;
     /// `acc[r] + sum_k w[r][k] * x[k]` for the 4 rows of a block.
     fn dot4(acc: [i32; 4], w: &[Self::Quad], x: &[[u32; 2]]) -> [i32; 4];
-    /// [`Self::dot4`] for every block `b` of a layer: `acc[b] = dot4(acc[b],
+    /// [`Self::dot4`] for every block `b` of a layer: `acc[b] = dot4(bias[b],
     /// w[b * Q..(b + 1) * Q], x)`, `Q = x.len()`.
     #[inline(always)]
-    fn matvec4(acc: &mut [[i32; 4]], w: &[Self::Quad], x: &[[u32; 2]]) {
-        for (a, wb) in acc.iter_mut().zip(w.chunks_exact(x.len().max(1))) {
-            *a = Self::dot4(*a, wb, x);
+    fn matvec4(acc: &mut [[i32; 4]], bias: &[[i32; 4]], w: &[Self::Quad], x: &[[u32; 2]]) {
+        let blocks = acc.iter_mut().zip(bias);
+        for ((a, b), wb) in blocks.zip(w.chunks_exact(x.len().max(1))) {
+            *a = Self::dot4(*b, wb, x);
         }
     }
     /// Packs `w[r][k]` (4 rows x 4 columns, each within `MAX_WEIGHT`).
@@ -104,8 +105,8 @@ impl WeightFormat for I16Weights {
         dsp::dot4_i16(acc, w, x)
     }
     #[inline(always)]
-    fn matvec4(acc: &mut [[i32; 4]], w: &[Self::Quad], x: &[[u32; 2]]) {
-        dsp::matvec4_i16(acc, w, x)
+    fn matvec4(acc: &mut [[i32; 4]], bias: &[[i32; 4]], w: &[Self::Quad], x: &[[u32; 2]]) {
+        dsp::matvec4_i16(acc, bias, w, x)
     }
     fn pack(w: [[i32; 4]; 4]) -> Self::Quad {
         let p = |r: usize, k: usize| dsp::pack(w[r][k] as i16, w[r][k + 1] as i16);
@@ -312,22 +313,17 @@ impl<F: WeightFormat> QuantView<'_, F> {
         }
         // LSTM gates: one 4-row block per cell (i, f, g, o), the whole layer in one
         // kernel call from the biases.
-        for (a, b) in acc.iter_mut().zip(self.gate_bias) {
-            *a = *b;
-        }
-        F::matvec4(acc, self.gate_w, z);
-        // Cell updates, four cells (one packed quad of h) at a time.
+        F::matvec4(acc, self.gate_bias, self.gate_w, z);
+        // Cell updates, two cells (one packed word of h) at a time.
         let cells = acc
-            .chunks_exact(4)
-            .zip(self.gate_requant.chunks_exact(4))
-            .zip(c.chunks_exact_mut(4))
-            .zip(h_new.iter_mut());
-        for (((a4, rq4), c4), hq) in cells {
-            let h0 = cell_update(&a4[0], &rq4[0], &mut c4[0]);
-            let h1 = cell_update(&a4[1], &rq4[1], &mut c4[1]);
-            let h2 = cell_update(&a4[2], &rq4[2], &mut c4[2]);
-            let h3 = cell_update(&a4[3], &rq4[3], &mut c4[3]);
-            *hq = [dsp::pack(h0, h1), dsp::pack(h2, h3)];
+            .chunks_exact(2)
+            .zip(self.gate_requant.chunks_exact(2))
+            .zip(c.chunks_exact_mut(2))
+            .zip(h_new.as_flattened_mut());
+        for (((a2, rq2), c2), hw) in cells {
+            let h0 = cell_update(&a2[0], &rq2[0], &mut c2[0]);
+            let h1 = cell_update(&a2[1], &rq2[1], &mut c2[1]);
+            *hw = dsp::pack(h0, h1);
         }
         if let Some(hz) = z.get_mut(d.embed_blocks..) {
             for (dst, src) in hz.iter_mut().zip(h_new.iter()) {
@@ -407,13 +403,17 @@ pub struct QuantLstm<
 }
 
 /// The recurrent state of an integer network: the packed `[e; h]` vector (the `h`
-/// part is the state, the `e` part scratch) and the Q4.11 cell state.
+/// part is the state, the `e` part scratch), the Q4.11 cell state, and the gate
+/// accumulators as scratch (kept here so that a step need not clear `16 * H` bytes
+/// of stack; every step overwrites them before reading).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct QuantState<const ZQ: usize, const H: usize> {
     /// Packed `[e; h]`, Q0.15.
     pub z: [[u32; 2]; ZQ],
     /// Cell state, Q4.11.
     pub c: [i16; H],
+    /// Scratch: the last step's gate accumulators (no meaning between steps).
+    pub acc: [[i32; 4]; H],
 }
 
 impl<const ZQ: usize, const H: usize> QuantState<ZQ, H> {
@@ -422,6 +422,7 @@ impl<const ZQ: usize, const H: usize> QuantState<ZQ, H> {
         QuantState {
             z: [[0; 2]; ZQ],
             c: [0; H],
+            acc: [[0; 4]; H],
         }
     }
 
@@ -494,14 +495,13 @@ impl<
         let () = Self::SHAPE;
         let mut xq = [[0u32; 2]; IQ];
         let mut h_new = [[0u32; 2]; HQ];
-        let mut acc = [[0i32; 4]; H];
         let mut out = [0.0f32; O];
         self.view().step(
             &mut state.z,
             &mut state.c,
             &mut xq,
             &mut h_new,
-            &mut acc,
+            &mut state.acc,
             input,
             &mut out,
         );
@@ -690,13 +690,17 @@ pub struct F32Lstm<
     pub output_mean: [[f32; 4]; OB],
 }
 
-/// The recurrent state of the f32 network: `[e; h]` (the `h` part is the state) and `c`.
+/// The recurrent state of the f32 network: `[e; h]` (the `h` part is the state),
+/// `c`, and the gate sums as scratch (kept here so that a step need not clear
+/// `16 * H` bytes of stack; every step overwrites them before reading).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct F32State<const Z: usize, const H: usize> {
     /// `[e; h]`.
     pub z: [f32; Z],
     /// Cell state.
     pub c: [f32; H],
+    /// Scratch: the last step's gate sums (no meaning between steps).
+    pub acc: [[f32; 4]; H],
 }
 
 impl<const Z: usize, const H: usize> F32State<Z, H> {
@@ -705,6 +709,7 @@ impl<const Z: usize, const H: usize> F32State<Z, H> {
         F32State {
             z: [0.0; Z],
             c: [0.0; H],
+            acc: [[0.0; 4]; H],
         }
     }
     /// Back to the zero state.
@@ -770,14 +775,13 @@ impl<
         let () = Self::SHAPE;
         let mut xn = [0.0f32; I];
         let mut h_new = [0.0f32; H];
-        let mut acc = [[0.0f32; 4]; H];
         let mut out = [0.0f32; O];
         self.view().step(
             &mut state.z,
             &mut state.c,
             &mut xn,
             &mut h_new,
-            &mut acc,
+            &mut state.acc,
             input,
             &mut out,
         );
