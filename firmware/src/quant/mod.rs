@@ -618,7 +618,11 @@ impl F32View<'_> {
         }
         // LSTM gates: the whole layer in one kernel call, then the cells.
         let z_in: &[f32] = z;
-        dsp::matvec4_f32(acc, self.w_gates, z_in.get(..e_len + d.hidden).unwrap_or(z_in));
+        dsp::matvec4_f32(
+            acc,
+            self.w_gates,
+            z_in.get(..e_len + d.hidden).unwrap_or(z_in),
+        );
         let rows = acc.iter().zip(self.b_gates);
         for (((acc, b), cj), hn) in rows.zip(c.iter_mut()).zip(h_new.iter_mut()) {
             let i = math::sigmoid_fast(acc[0] + b[0]);
