@@ -418,30 +418,31 @@ mod asm {
         a
     }
 
-    /// One quad of the layer kernel: LDRD of the input pair, two LDM of 4 weights.
+    /// One quad of the layer kernel: LDRD of the input pair, two LDM of 4 weights,
+    /// accumulators in r0-r3.
     macro_rules! quad_i16_d {
         () => {
             concat!(
                 "ldrd {x0}, {x1}, [{xp}], #8\n",
                 "ldm {wp}!, {{r4, r5, r8, r9}}\n",
-                "smlad {a0}, r4, {x0}, {a0}\n",
-                "smlad {a1}, r5, {x0}, {a1}\n",
-                "smlad {a2}, r8, {x0}, {a2}\n",
-                "smlad {a3}, r9, {x0}, {a3}\n",
+                "smlad r0, r4, {x0}, r0\n",
+                "smlad r1, r5, {x0}, r1\n",
+                "smlad r2, r8, {x0}, r2\n",
+                "smlad r3, r9, {x0}, r3\n",
                 "ldm {wp}!, {{r4, r5, r8, r9}}\n",
-                "smlad {a0}, r4, {x1}, {a0}\n",
-                "smlad {a1}, r5, {x1}, {a1}\n",
-                "smlad {a2}, r8, {x1}, {a2}\n",
-                "smlad {a3}, r9, {x1}, {a3}\n",
+                "smlad r0, r4, {x1}, r0\n",
+                "smlad r1, r5, {x1}, r1\n",
+                "smlad r2, r8, {x1}, r2\n",
+                "smlad r3, r9, {x1}, r3\n",
             )
         };
     }
 
-    /// The int16 layer: per block, accumulators from `bias`, `q / 8` iterations of 8
-    /// quads, then `q % 8` single quads, accumulators to `acc`. The loop-invariant
-    /// values (x base, q, blocks left, bias and accumulator pointers) live in 24 bytes
-    /// of stack that the block reserves and frees itself, so 13 registers carry the
-    /// inner loop.
+    /// The int16 layer: per block, accumulators (r0-r3) from `bias` by one LDM,
+    /// `q / 8` iterations of 8 quads, then `q % 8` single quads, accumulators to `acc`
+    /// by one STM. The loop-invariant values (x base, q, blocks left, bias and
+    /// accumulator pointers) live in 24 bytes of stack that the block reserves and
+    /// frees itself, so 13 registers carry the inner loop.
     ///
     /// # Safety
     /// `acc` (written) and `bias` valid for `blocks > 0` blocks, `w` for `blocks * q`
@@ -462,14 +463,12 @@ mod asm {
         unsafe {
             asm!(
                 "sub sp, sp, #24",
-                "strd {a0}, {a1}, [sp]",
-                "strd {a2}, {a3}, [sp, #8]",
+                "strd r0, r1, [sp]",
+                "strd r2, r3, [sp, #8]",
                 "str {x0}, [sp, #16]",
                 "2:",
                 "ldr {x0}, [sp, #16]",
-                "ldrd {a0}, {a1}, [{x0}]",
-                "ldrd {a2}, {a3}, [{x0}, #8]",
-                "adds {x0}, {x0}, #16",
+                "ldm {x0}!, {{r0, r1, r2, r3}}",
                 "str {x0}, [sp, #16]",
                 "ldrd {xp}, {n}, [sp]",
                 "subs {n}, {n}, #8",
@@ -494,19 +493,17 @@ mod asm {
                 "bne 5b",
                 "6:",
                 "ldr {x0}, [sp, #12]",
-                "strd {a0}, {a1}, [{x0}]",
-                "strd {a2}, {a3}, [{x0}, #8]",
-                "adds {x0}, {x0}, #16",
+                "stm {x0}!, {{r0, r1, r2, r3}}",
                 "ldr {x1}, [sp, #8]",
                 "str {x0}, [sp, #12]",
                 "subs {x1}, {x1}, #1",
                 "str {x1}, [sp, #8]",
                 "bne 2b",
                 "add sp, sp, #24",
-                a0 = inout(reg) x => _,
-                a1 = inout(reg) q => _,
-                a2 = inout(reg) blocks => _,
-                a3 = inout(reg) acc => _,
+                inout("r0") x => _,
+                inout("r1") q => _,
+                inout("r2") blocks => _,
+                inout("r3") acc => _,
                 x0 = inout(reg) bias => _,
                 x1 = out(reg) _,
                 xp = out(reg) _,
