@@ -1,11 +1,19 @@
 //! Cortex-M4 DSP kernels: the firmware's only inline assembly.
 //!
 //! rustc 1.95 never emits SMLAD for a plain int16 dot product (about 3.6 instructions
-//! per MAC); these kernels issue it explicitly over 4 interleaved weight rows
-//! (about 1.4 estimated cycles per MAC). Every kernel has a portable twin in plain
-//! Rust with the same wrapping semantics; the host (and any target without the DSP
-//! extension) runs the twin, the Cortex-M4 the assembly, and the QEMU golden suites
-//! (`host-tests`) prove both give the same bits.
+//! per MAC), nor VLDM for an f32 one; these kernels issue them explicitly over 4
+//! interleaved weight rows. The layer kernels ([`matvec4_i16`], [`matvec4_f32`]) run
+//! every 4-row block of a layer in one call: 1.34 estimated cycles per MAC in the
+//! int16 loop (LDRD + 2 LDM + 8 SMLAD per quad, 8 quads per iteration), 3.44 in the
+//! f32 loop (VLDM of 8 inputs and 2 x 16 weights, VMUL + VADD, 8 columns per
+//! iteration); the single-block kernels ([`dot4_i16`], [`dot4_i8`], [`dot4_f32`])
+//! serve the small layers. VMLA/VFMA are not used: the M4 takes 3 cycles for them
+//! against 2 for VMUL + VADD, and the separate rounding keeps the bits of the plain
+//! Rust sum. Every kernel has a portable twin in plain Rust with the same wrapping
+//! (integer) or rounding (f32) semantics; the host (and any target without the DSP
+//! extension) runs the twin, the Cortex-M4 the assembly, the twin tests here check
+//! the kernels against their definitions, and the QEMU golden suites (`host-tests`)
+//! prove both give the same bits.
 //!
 //! The assembly is selected by `cfg(fw_dsp_asm)`, which `firmware/build.rs` sets for
 //! `thumbv7em-*` and `thumbv8m.main-*` targets (stable Rust does not expose
@@ -119,6 +127,75 @@ pub fn dot4_f32(acc: [f32; 4], w: &[[f32; 4]], x: &[f32]) -> [f32; 4] {
     }
 }
 
+/// A whole int16 layer: for every 4-row block `b`, `acc[b] = dot4_i16(bias[b],
+/// w[b * Q..(b + 1) * Q], x)` with `Q = x.len()` quads;
+/// `min(acc.len(), bias.len(), w.len() / Q)` blocks (with `Q == 0`, `acc[b] =
+/// bias[b]`). One call per layer keeps the per-block overhead inside the assembly
+/// (about 35 estimated cycles per block) and the inner loop at 8 quads (128 MACs)
+/// per iteration with LDRD for the inputs and LDM for the weights.
+#[inline(always)]
+pub fn matvec4_i16(acc: &mut [[i32; 4]], bias: &[[i32; 4]], w: &[[[u32; 4]; 2]], x: &[[u32; 2]]) {
+    let q = x.len();
+    if q == 0 {
+        for (a, b) in acc.iter_mut().zip(bias) {
+            *a = *b;
+        }
+        return;
+    }
+    let blocks = acc.len().min(bias.len()).min(w.len() / q);
+    if blocks == 0 {
+        return;
+    }
+    #[cfg(fw_dsp_asm)]
+    {
+        // SAFETY: blocks > 0 blocks of q > 0 quads of `w`, q quads of `x`, blocks
+        // biases and accumulators, all in bounds by the computation above.
+        unsafe {
+            asm::matvec4_i16(
+                acc.as_mut_ptr(),
+                bias.as_ptr(),
+                w.as_ptr(),
+                x.as_ptr(),
+                q,
+                blocks,
+            )
+        }
+    }
+    #[cfg(not(fw_dsp_asm))]
+    {
+        portable::matvec4_i16(&mut acc[..blocks], bias, w, x)
+    }
+}
+
+/// A whole f32 layer: for every 4-row block `b`, `out[b] = dot4_f32([0.0; 4],
+/// w[b * N..(b + 1) * N], x)` with `N = x.len()` columns (each row summed left to
+/// right from +0.0, separate multiply and add: the bits of [`dot4_f32`]);
+/// `min(out.len(), w.len() / N)` blocks (all of `out` is zero when `N == 0`).
+/// On the Cortex-M4F: 8 columns per iteration (VLDM of 8 inputs, two VLDM of 16
+/// weights, VMUL + VADD), the FPU registers saved once per layer.
+#[inline(always)]
+pub fn matvec4_f32(out: &mut [[f32; 4]], w: &[[f32; 4]], x: &[f32]) {
+    let n = x.len();
+    if n == 0 {
+        out.fill([0.0; 4]);
+        return;
+    }
+    let blocks = out.len().min(w.len() / n);
+    if blocks == 0 {
+        return;
+    }
+    #[cfg(fw_dsp_asm)]
+    {
+        // SAFETY: blocks > 0 blocks of n > 0 columns of `w`, n values of `x`, blocks
+        // outputs, all in bounds by the computation above.
+        unsafe { asm::matvec4_f32(out.as_mut_ptr(), w.as_ptr(), x.as_ptr(), n, blocks) }
+    }
+    #[cfg(not(fw_dsp_asm))]
+    {
+        portable::matvec4_f32(&mut out[..blocks], w, x)
+    }
+}
+
 /// The portable twins (always compiled, so the host tests them and the target can
 /// compare).
 pub mod portable {
@@ -147,6 +224,37 @@ pub mod portable {
             acc[3] += wk[3] * xk;
         }
         acc
+    }
+
+    /// Portable [`super::matvec4_i16`].
+    #[inline(always)]
+    pub fn matvec4_i16(
+        acc: &mut [[i32; 4]],
+        bias: &[[i32; 4]],
+        w: &[[[u32; 4]; 2]],
+        x: &[[u32; 2]],
+    ) {
+        if x.is_empty() {
+            for (a, b) in acc.iter_mut().zip(bias) {
+                *a = *b;
+            }
+            return;
+        }
+        for ((a, b), wb) in acc.iter_mut().zip(bias).zip(w.chunks_exact(x.len())) {
+            *a = dot4_i16(*b, wb, x);
+        }
+    }
+
+    /// Portable [`super::matvec4_f32`].
+    #[inline(always)]
+    pub fn matvec4_f32(out: &mut [[f32; 4]], w: &[[f32; 4]], x: &[f32]) {
+        if x.is_empty() {
+            out.fill([0.0; 4]);
+            return;
+        }
+        for (o, wb) in out.iter_mut().zip(w.chunks_exact(x.len())) {
+            *o = dot4_f32([0.0; 4], wb, x);
+        }
     }
 
     /// Portable [`super::dot4_i8`].
@@ -310,6 +418,248 @@ mod asm {
         a
     }
 
+    /// One quad of the layer kernel: LDRD of the input pair, two LDM of 4 weights,
+    /// accumulators in r0-r3.
+    macro_rules! quad_i16_d {
+        () => {
+            concat!(
+                "ldrd {x0}, {x1}, [{xp}], #8\n",
+                "ldm {wp}!, {{r4, r5, r8, r9}}\n",
+                "smlad r0, r4, {x0}, r0\n",
+                "smlad r1, r5, {x0}, r1\n",
+                "smlad r2, r8, {x0}, r2\n",
+                "smlad r3, r9, {x0}, r3\n",
+                "ldm {wp}!, {{r4, r5, r8, r9}}\n",
+                "smlad r0, r4, {x1}, r0\n",
+                "smlad r1, r5, {x1}, r1\n",
+                "smlad r2, r8, {x1}, r2\n",
+                "smlad r3, r9, {x1}, r3\n",
+            )
+        };
+    }
+
+    /// The int16 layer: per block, accumulators (r0-r3) from `bias` by one LDM,
+    /// `q / 8` iterations of 8 quads, then `q % 8` single quads, accumulators to `acc`
+    /// by one STM. The loop-invariant values (x base, q, blocks left, bias and
+    /// accumulator pointers) live in 24 bytes of stack that the block reserves and
+    /// frees itself, so 13 registers carry the inner loop.
+    ///
+    /// # Safety
+    /// `acc` (written) and `bias` valid for `blocks > 0` blocks, `w` for `blocks * q`
+    /// quads, `x` for `q > 0` quads.
+    #[inline(always)]
+    pub unsafe fn matvec4_i16(
+        acc: *mut [i32; 4],
+        bias: *const [i32; 4],
+        w: *const [[u32; 4]; 2],
+        x: *const [u32; 2],
+        q: usize,
+        blocks: usize,
+    ) {
+        // SAFETY (caller: pointers valid as documented): per block the loops read q
+        // quads of `x` and of `w` (w advances block after block), one `[i32; 4]` of
+        // `bias` and write one of `acc`; sp is restored; only declared registers and
+        // the flags are written.
+        unsafe {
+            asm!(
+                "sub sp, sp, #24",
+                "strd r0, r1, [sp]",
+                "strd r2, r3, [sp, #8]",
+                "str {x0}, [sp, #16]",
+                "2:",
+                "ldr {x0}, [sp, #16]",
+                "ldm {x0}!, {{r0, r1, r2, r3}}",
+                "str {x0}, [sp, #16]",
+                "ldrd {xp}, {n}, [sp]",
+                "subs {n}, {n}, #8",
+                "blo 4f",
+                "3:",
+                quad_i16_d!(),
+                quad_i16_d!(),
+                quad_i16_d!(),
+                quad_i16_d!(),
+                quad_i16_d!(),
+                quad_i16_d!(),
+                quad_i16_d!(),
+                quad_i16_d!(),
+                "subs {n}, {n}, #8",
+                "bhs 3b",
+                "4:",
+                "adds {n}, {n}, #8",
+                "beq 6f",
+                "5:",
+                quad_i16_d!(),
+                "subs {n}, {n}, #1",
+                "bne 5b",
+                "6:",
+                "ldr {x0}, [sp, #12]",
+                "stm {x0}!, {{r0, r1, r2, r3}}",
+                "ldr {x1}, [sp, #8]",
+                "str {x0}, [sp, #12]",
+                "subs {x1}, {x1}, #1",
+                "str {x1}, [sp, #8]",
+                "bne 2b",
+                "add sp, sp, #24",
+                inout("r0") x => _,
+                inout("r1") q => _,
+                inout("r2") blocks => _,
+                inout("r3") acc => _,
+                x0 = inout(reg) bias => _,
+                x1 = out(reg) _,
+                xp = out(reg) _,
+                n = out(reg) _,
+                wp = inout(reg) w => _,
+                out("r4") _,
+                out("r5") _,
+                out("r8") _,
+                out("r9") _,
+            );
+        }
+    }
+
+    /// Four columns of the f32 layer kernel: inputs s4+k, weights s12-s27.
+    macro_rules! cols4_f32 {
+        ($x0:literal, $x1:literal, $x2:literal, $x3:literal) => {
+            concat!(
+                "vmul.f32 s28, s12, ",
+                $x0,
+                "\n",
+                "vadd.f32 s0, s0, s28\n",
+                "vmul.f32 s29, s13, ",
+                $x0,
+                "\n",
+                "vadd.f32 s1, s1, s29\n",
+                "vmul.f32 s30, s14, ",
+                $x0,
+                "\n",
+                "vadd.f32 s2, s2, s30\n",
+                "vmul.f32 s31, s15, ",
+                $x0,
+                "\n",
+                "vadd.f32 s3, s3, s31\n",
+                "vmul.f32 s28, s16, ",
+                $x1,
+                "\n",
+                "vadd.f32 s0, s0, s28\n",
+                "vmul.f32 s29, s17, ",
+                $x1,
+                "\n",
+                "vadd.f32 s1, s1, s29\n",
+                "vmul.f32 s30, s18, ",
+                $x1,
+                "\n",
+                "vadd.f32 s2, s2, s30\n",
+                "vmul.f32 s31, s19, ",
+                $x1,
+                "\n",
+                "vadd.f32 s3, s3, s31\n",
+                "vmul.f32 s28, s20, ",
+                $x2,
+                "\n",
+                "vadd.f32 s0, s0, s28\n",
+                "vmul.f32 s29, s21, ",
+                $x2,
+                "\n",
+                "vadd.f32 s1, s1, s29\n",
+                "vmul.f32 s30, s22, ",
+                $x2,
+                "\n",
+                "vadd.f32 s2, s2, s30\n",
+                "vmul.f32 s31, s23, ",
+                $x2,
+                "\n",
+                "vadd.f32 s3, s3, s31\n",
+                "vmul.f32 s28, s24, ",
+                $x3,
+                "\n",
+                "vadd.f32 s0, s0, s28\n",
+                "vmul.f32 s29, s25, ",
+                $x3,
+                "\n",
+                "vadd.f32 s1, s1, s29\n",
+                "vmul.f32 s30, s26, ",
+                $x3,
+                "\n",
+                "vadd.f32 s2, s2, s30\n",
+                "vmul.f32 s31, s27, ",
+                $x3,
+                "\n",
+                "vadd.f32 s3, s3, s31\n",
+            )
+        };
+    }
+
+    /// The f32 layer: per block, accumulators s0-s3 from +0.0, `n / 8` iterations
+    /// of 8 columns (VLDM of 8 inputs into s4-s11, two VLDM of 16 weights into
+    /// s12-s27, products in s28-s31), then `n % 8` single columns; VSTM of s0-s3.
+    /// All 32 FPU registers are saved and restored inside the block (VPUSH/VPOP of
+    /// d0-d15, once per layer).
+    ///
+    /// # Safety
+    /// `out` valid for `blocks > 0` blocks (written), `w` for `blocks * n` columns,
+    /// `x` for `n > 0` values.
+    #[inline(always)]
+    pub unsafe fn matvec4_f32(
+        out: *mut [f32; 4],
+        w: *const [f32; 4],
+        x: *const f32,
+        n: usize,
+        blocks: usize,
+    ) {
+        // SAFETY (caller: pointers valid as documented): per block the loops read n
+        // values of `x` and n columns of `w` (w advances block after block) and write
+        // one `[f32; 4]` of `out`; every FPU register is pushed before and popped
+        // after; sp is restored; only declared core registers and the flags change.
+        unsafe {
+            asm!(
+                "vpush {{d0-d15}}",
+                "2:",
+                "movs {k}, #0",
+                "vmov s0, s1, {k}, {k}",
+                "vmov s2, s3, {k}, {k}",
+                "mov {xp}, {xb}",
+                "lsrs {k}, {n}, #3",
+                "beq 4f",
+                "3:",
+                "vldmia {xp}!, {{s4-s11}}",
+                "vldmia {wp}!, {{s12-s27}}",
+                cols4_f32!("s4", "s5", "s6", "s7"),
+                "vldmia {wp}!, {{s12-s27}}",
+                cols4_f32!("s8", "s9", "s10", "s11"),
+                "subs {k}, {k}, #1",
+                "bne 3b",
+                "4:",
+                "ands {k}, {n}, #7",
+                "beq 6f",
+                "5:",
+                "vldmia {xp}!, {{s4}}",
+                "vldmia {wp}!, {{s12-s15}}",
+                "vmul.f32 s28, s12, s4",
+                "vadd.f32 s0, s0, s28",
+                "vmul.f32 s29, s13, s4",
+                "vadd.f32 s1, s1, s29",
+                "vmul.f32 s30, s14, s4",
+                "vadd.f32 s2, s2, s30",
+                "vmul.f32 s31, s15, s4",
+                "vadd.f32 s3, s3, s31",
+                "subs {k}, {k}, #1",
+                "bne 5b",
+                "6:",
+                "vstmia {op}!, {{s0-s3}}",
+                "subs {nb}, {nb}, #1",
+                "bne 2b",
+                "vpop {{d0-d15}}",
+                op = inout(reg) out => _,
+                wp = inout(reg) w => _,
+                xb = in(reg) x,
+                n = in(reg) n,
+                nb = inout(reg) blocks => _,
+                xp = out(reg) _,
+                k = out(reg) _,
+            );
+        }
+    }
+
     /// SXTB16 + SMLAD over 4 interleaved rows, four columns per loop iteration.
     #[inline(always)]
     ///
@@ -458,6 +808,59 @@ mod tests {
             }
             assert_eq!(got[r].to_bits(), s.to_bits(), "row {r}");
         }
+    }
+
+    #[test]
+    fn layer_kernels_equal_their_blockwise_dots() {
+        // 3 blocks of 7 quads (28 columns): the 4-quad loop and the single-quad tail.
+        const Q: usize = 7;
+        let w: [[[u32; 4]; 2]; 3 * Q] = core::array::from_fn(|q| {
+            core::array::from_fn(|p| core::array::from_fn(|r| word(5 + (q * 8 + p * 4 + r) as u32)))
+        });
+        let x: [[u32; 2]; Q] =
+            core::array::from_fn(|q| core::array::from_fn(|p| word(700 + (2 * q + p) as u32)));
+        let bias = [[1, 2, 3, 4], [-5, 6, -7, 8], [0; 4]];
+        let want: [[i32; 4]; 3] =
+            core::array::from_fn(|b| dot4_i16(bias[b], &w[b * Q..(b + 1) * Q], &x));
+        let mut acc = [[7; 4]; 3];
+        matvec4_i16(&mut acc, &bias, &w, &x);
+        assert_eq!(acc, want);
+        // 2 blocks of 19 quads: two 8-quad iterations and 3 single quads.
+        let w19: [[[u32; 4]; 2]; 38] = core::array::from_fn(|q| {
+            core::array::from_fn(|p| {
+                core::array::from_fn(|r| word(3000 + (q * 8 + p * 4 + r) as u32))
+            })
+        });
+        let x19: [[u32; 2]; 19] =
+            core::array::from_fn(|q| core::array::from_fn(|p| word(4000 + (2 * q + p) as u32)));
+        let mut acc2 = [[0; 4]; 2];
+        matvec4_i16(&mut acc2, &bias[..2], &w19, &x19);
+        for b in 0..2 {
+            assert_eq!(acc2[b], dot4_i16(bias[b], &w19[b * 19..(b + 1) * 19], &x19));
+        }
+        let mut copy = [[0; 4]; 2];
+        matvec4_i16(&mut copy, &bias[..2], &w19, &[]);
+        assert_eq!(copy, [bias[0], bias[1]]);
+        // f32: 2 blocks of 11 columns (one 8-column iteration and 3 single columns).
+        const N: usize = 11;
+        let wf: [[f32; 4]; 2 * N] = core::array::from_fn(|k| {
+            core::array::from_fn(|r| crate::golden::unit(word(900 + (k * 4 + r) as u32)) - 0.5)
+        });
+        let xf: [f32; N] =
+            core::array::from_fn(|k| 4.0 * crate::golden::unit(word(1200 + k as u32)) - 2.0);
+        let mut out = [[9.0f32; 4]; 2];
+        matvec4_f32(&mut out, &wf, &xf);
+        for b in 0..2 {
+            let want = dot4_f32([0.0; 4], &wf[b * N..(b + 1) * N], &xf);
+            assert_eq!(
+                out[b].map(f32::to_bits),
+                want.map(f32::to_bits),
+                "block {b}"
+            );
+        }
+        let mut none = [[1.0f32; 4]; 1];
+        matvec4_f32(&mut none, &wf, &[]);
+        assert_eq!(none, [[0.0; 4]]);
     }
 
     #[test]

@@ -1,9 +1,9 @@
 //! Scalar and fixed-size vector math used by the dynamics model and the LSTM.
 //!
-//! Everything is pure software (libm, or f32-only code here for sin/cos) or a single
-//! IEEE-754 operation (`sqrt`), with
-//! a fixed evaluation order and no fused multiply-add, so host and Cortex-M4F give
-//! the same bits.
+//! Everything is pure software (libm, or f32-only code here for sin/cos and the f32
+//! kernels' sigmoid/tanh) or a single IEEE-754 operation (`sqrt`), with a fixed
+//! evaluation order and no fused multiply-add, so host and Cortex-M4F give the same
+//! bits.
 
 /// e^x.
 #[inline]
@@ -26,6 +26,65 @@ pub fn sigmoid(x: f32) -> f32 {
         let e = libm::expf(x);
         e / (1.0 + e)
     }
+}
+
+// e^r on [-ln2/2, ln2/2] (Cephes expf): 1 + r + r^2 (P0 r^5 + ... + P5), ~1 ulp.
+const EXP_P0: f32 = 1.987_569_2e-4;
+const EXP_P1: f32 = 1.398_199_9e-3;
+const EXP_P2: f32 = 8.333_452e-3;
+const EXP_P3: f32 = 4.166_579_6e-2;
+const EXP_P4: f32 = 0.166_666_65;
+const EXP_P5: f32 = 0.5;
+// ln 2 = LN2_HI + LN2_LO; LN2_HI = 355/512 has 9 significant bits, so k * LN2_HI is
+// exact for the k < 2^7 used here.
+const LN2_HI: f32 = 0.693_359_4;
+const LN2_LO: f32 = -2.121_944_4e-4;
+
+/// e^y for y <= 0 in f32 only (no f64, no division): k = round(-y / ln 2), r = y + k ln 2
+/// (two-part ln 2), the Cephes `expf` polynomial for e^r, times 2^-k built from its
+/// bits. y is clamped to >= -87 (e^-87 = 1.6e-38, still normal); NaN stays NaN.
+#[inline(always)]
+fn exp_nonpositive(y: f32) -> f32 {
+    let y = if y < -87.0 { -87.0 } else { y };
+    let u = y * -core::f32::consts::LOG2_E;
+    // u in [0, 125.6]: truncating u + 0.5 rounds to nearest (NaN gives 0).
+    let k = (u + 0.5) as i32;
+    let kf = k as f32;
+    let r = (y + kf * LN2_HI) + kf * LN2_LO;
+    let z = r * r;
+    let p = (((((EXP_P0 * r + EXP_P1) * r + EXP_P2) * r + EXP_P3) * r + EXP_P4) * r + EXP_P5) * z
+        + r
+        + 1.0;
+    p * f32::from_bits(((127 - k) as u32) << 23)
+}
+
+/// Logistic sigmoid for the f32 kernels (`quant::F32Lstm`): `1 / (1 + e^-x)` for
+/// x >= 0, `e^x / (1 + e^x)` below, with an f32-only e^-|x| (Cephes polynomial, no
+/// special cases beyond the clamp) and one division: about half the estimated
+/// Cortex-M4 cycles of [`sigmoid`] (libm `expf`), measured in the f32 LSTM step. Same
+/// bits on host and target (IEEE single adds, multiplies and one division in a fixed
+/// order, no FMA).
+/// Accuracy against f64 (measured by `math::tests`): relative error <= 4e-7.
+#[inline]
+pub fn sigmoid_fast(x: f32) -> f32 {
+    let e = exp_nonpositive(-x.abs());
+    let num = if x >= 0.0 { 1.0 } else { e };
+    num / (1.0 + e)
+}
+
+/// Hyperbolic tangent for the f32 kernels (`quant::F32Lstm`): `sign(x) (1 - e) /
+/// (1 + e)` with `e = e^-2|x|` from the f32-only exponential of [`sigmoid_fast`]
+/// (|x| clamped to 9, where tanh rounds to 1). Same bits on host and target.
+/// Accuracy against f64 (measured by `math::tests`): absolute error <= 2e-7 (near 0
+/// the result is `1 - e` of an e accurate to an ulp, so small |x| has a larger
+/// relative error; the absolute error is what the LSTM's sums see).
+#[inline]
+pub fn tanh_fast(x: f32) -> f32 {
+    let a = x.abs();
+    let a = if a > 9.0 { 9.0 } else { a };
+    let e = exp_nonpositive(-2.0 * a);
+    let t = (1.0 - e) / (1.0 + e);
+    if x < 0.0 { -t } else { t }
 }
 
 /// Square root (IEEE-754 correctly rounded on both host and target).
@@ -128,6 +187,28 @@ pub fn dot<const N: usize>(a: &[f32; N], b: &[f32; N]) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn fast_sigmoid_and_tanh_error_against_f64() {
+        let (mut es, mut et) = (0.0f64, 0.0f64);
+        for i in 0..=2_000_000u32 {
+            let x = -40.0 + 80.0 * (i as f32 / 2_000_000.0);
+            let xd = x as f64;
+            let s = 1.0 / (1.0 + (-xd).exp());
+            es = es.max(((sigmoid_fast(x) as f64 - s) / s).abs());
+            et = et.max((tanh_fast(x) as f64 - xd.tanh()).abs());
+        }
+        std::println!("sigmoid_fast max rel error {es:.2e}, tanh_fast max abs error {et:.2e}");
+        assert!(es <= 4e-7, "sigmoid {es}");
+        assert!(et <= 2e-7, "tanh {et}");
+        assert_eq!(tanh_fast(0.0), 0.0);
+        assert_eq!(sigmoid_fast(0.0), 0.5);
+        assert_eq!(tanh_fast(100.0), 1.0);
+        assert_eq!(tanh_fast(-100.0), -1.0);
+        assert_eq!(sigmoid_fast(200.0), 1.0);
+        assert!(sigmoid_fast(-200.0) >= 0.0 && sigmoid_fast(-200.0) < 1e-37);
+        assert!(sigmoid_fast(f32::NAN).is_nan() && tanh_fast(f32::NAN).is_nan());
+    }
 
     #[test]
     fn sigmoid_is_symmetric_and_saturates() {

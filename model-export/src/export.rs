@@ -422,11 +422,12 @@ impl<F: WeightFormat> QuantNet<F> {
         let mut c = vec![0i16; d.hidden];
         let mut xq = vec![[0u32; 2]; d.input_quads];
         let mut hn = vec![[0u32; 2]; d.hidden / 4];
+        let mut acc = vec![[0i32; 4]; d.hidden];
         inputs
             .iter()
             .map(|x| {
                 let mut y = vec![0.0f32; d.output];
-                v.step(&mut z, &mut c, &mut xq, &mut hn, x, &mut y);
+                v.step(&mut z, &mut c, &mut xq, &mut hn, &mut acc, x, &mut y);
                 y
             })
             .collect()
@@ -551,11 +552,12 @@ impl F32Net {
         let mut c = vec![0.0f32; d.hidden];
         let mut xn = vec![0.0f32; d.input];
         let mut hn = vec![0.0f32; d.hidden];
+        let mut acc = vec![[0.0f32; 4]; d.hidden];
         inputs
             .iter()
             .map(|x| {
                 let mut y = vec![0.0f32; d.output];
-                v.step(&mut z, &mut c, &mut xn, &mut hn, x, &mut y);
+                v.step(&mut z, &mut c, &mut xn, &mut hn, &mut acc, x, &mut y);
                 y
             })
             .collect()

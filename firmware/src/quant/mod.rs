@@ -5,8 +5,8 @@
 //!
 //! | precision | weights | activations | accumulator | kernel |
 //! |---|---|---|---|---|
-//! | [`F32Lstm`] | f32 | f32 | f32, sequential per row | 4 rows per pass, libm sigmoid/tanh |
-//! | [`QuantLstm<I16Weights>`] | int16, per-row scale | int16 | i32 (SMLAD), i64 requantisation | `dsp::dot4_i16` |
+//! | [`F32Lstm`] | f32 | f32 | f32, sequential per row | `dsp::matvec4_f32`, `math::sigmoid_fast` / `tanh_fast` |
+//! | [`QuantLstm<I16Weights>`] | int16, per-row scale | int16 | i32 (SMLAD), i64 requantisation | `dsp::matvec4_i16` (gates), `dsp::dot4_i16` |
 //! | [`QuantLstm<I8Weights>`] | int8, per-row scale | int16 | i32 (SXTB16 + SMLAD), i64 requantisation | `dsp::dot4_i8` |
 //!
 //! # Integer scheme (in the spirit of CMSIS-NN / TFLM int16x8 LSTM)
@@ -79,6 +79,15 @@ pub trait WeightFormat {
     const MAX_WEIGHT: i32;
     /// `acc[r] + sum_k w[r][k] * x[k]` for the 4 rows of a block.
     fn dot4(acc: [i32; 4], w: &[Self::Quad], x: &[[u32; 2]]) -> [i32; 4];
+    /// [`Self::dot4`] for every block `b` of a layer: `acc[b] = dot4(bias[b],
+    /// w[b * Q..(b + 1) * Q], x)`, `Q = x.len()`.
+    #[inline(always)]
+    fn matvec4(acc: &mut [[i32; 4]], bias: &[[i32; 4]], w: &[Self::Quad], x: &[[u32; 2]]) {
+        let blocks = acc.iter_mut().zip(bias);
+        for ((a, b), wb) in blocks.zip(w.chunks_exact(x.len().max(1))) {
+            *a = Self::dot4(*b, wb, x);
+        }
+    }
     /// Packs `w[r][k]` (4 rows x 4 columns, each within `MAX_WEIGHT`).
     fn pack(w: [[i32; 4]; 4]) -> Self::Quad;
 }
@@ -94,6 +103,10 @@ impl WeightFormat for I16Weights {
     #[inline(always)]
     fn dot4(acc: [i32; 4], w: &[Self::Quad], x: &[[u32; 2]]) -> [i32; 4] {
         dsp::dot4_i16(acc, w, x)
+    }
+    #[inline(always)]
+    fn matvec4(acc: &mut [[i32; 4]], bias: &[[i32; 4]], w: &[Self::Quad], x: &[[u32; 2]]) {
+        dsp::matvec4_i16(acc, bias, w, x)
     }
     fn pack(w: [[i32; 4]; 4]) -> Self::Quad {
         let p = |r: usize, k: usize| dsp::pack(w[r][k] as i16, w[r][k + 1] as i16);
@@ -148,20 +161,16 @@ impl Requant {
 
 #[inline(always)]
 fn sat16(v: i32) -> i16 {
-    if v > i16::MAX as i32 {
-        i16::MAX
-    } else if v < i16::MIN as i32 {
-        i16::MIN
-    } else {
-        v as i16
-    }
+    v.clamp(i16::MIN as i32, i16::MAX as i32) as i16
 }
 
 /// Rounds half away from zero and saturates to int16 (NaN gives 0).
 #[inline(always)]
 pub fn quantise_i16(v: f32) -> i16 {
     let r = if v >= 0.0 { v + 0.5 } else { v - 0.5 };
-    r as i16
+    // `r as i16` (saturating, NaN -> 0) in two steps the M4F does in one VCVT and
+    // one SSAT: the i32 conversion saturates and maps NaN to 0 too.
+    (r as i32).clamp(i16::MIN as i32, i16::MAX as i32) as i16
 }
 
 /// Writes element `k` (0..4) of a packed quad.
@@ -257,8 +266,10 @@ impl<F: WeightFormat> QuantView<'_, F> {
     }
 
     /// The kernel: one step. `z` (`ZQ` quads) and `c` (`H`) are the state, `xq`
-    /// (`IQ` quads) and `h_new` (`HQ` quads) scratch, `input` (`I`) and `out` (`O`).
-    /// Lengths are trusted (a mismatch gives a wrong result, never a panic).
+    /// (`IQ` quads), `h_new` (`HQ` quads) and `acc` (`H` blocks) scratch, `input`
+    /// (`I`) and `out` (`O`). Lengths are trusted (a mismatch gives a wrong result,
+    /// never a panic).
+    #[allow(clippy::too_many_arguments)]
     #[inline(always)]
     pub fn step(
         &self,
@@ -266,12 +277,12 @@ impl<F: WeightFormat> QuantView<'_, F> {
         c: &mut [i16],
         xq: &mut [[u32; 2]],
         h_new: &mut [[u32; 2]],
+        acc: &mut [[i32; 4]],
         input: &[f32],
         out: &mut [f32],
     ) {
         let d = self.dims;
         let iq = d.input_quads.max(1);
-        let zq = d.z_quads().max(1);
         let hq = (d.hidden / 4).max(1);
         // Input quantisation (f32, the only float arithmetic before the output).
         for q in xq.iter_mut() {
@@ -293,33 +304,26 @@ impl<F: WeightFormat> QuantView<'_, F> {
             .chunks_exact(iq)
             .zip(self.in_bias.iter().zip(self.in_requant));
         for ((w, (b, rq)), zq_e) in blocks.zip(z.iter_mut()) {
-            let acc = F::dot4(*b, w, xq);
-            let e0 = act::tanh_q15(rq[0].apply(acc[0]));
-            let e1 = act::tanh_q15(rq[1].apply(acc[1]));
-            let e2 = act::tanh_q15(rq[2].apply(acc[2]));
-            let e3 = act::tanh_q15(rq[3].apply(acc[3]));
+            let a = F::dot4(*b, w, xq);
+            let e0 = act::tanh_q15(rq[0].apply(a[0]));
+            let e1 = act::tanh_q15(rq[1].apply(a[1]));
+            let e2 = act::tanh_q15(rq[2].apply(a[2]));
+            let e3 = act::tanh_q15(rq[3].apply(a[3]));
             *zq_e = [dsp::pack(e0, e1), dsp::pack(e2, e3)];
         }
-        // LSTM: one block per cell, gates i, f, g, o.
-        let z_in: &[[u32; 2]] = z;
-        let cells = self
-            .gate_w
-            .chunks_exact(zq)
-            .zip(self.gate_bias.iter().zip(self.gate_requant));
-        for (j, ((w, (b, rq)), cj)) in cells.zip(c.iter_mut()).enumerate() {
-            let acc = F::dot4(*b, w, z_in);
-            let i = act::sigmoid_q15(rq[0].apply(acc[0])) as i32;
-            let f = act::sigmoid_q15(rq[1].apply(acc[1])) as i32;
-            let g = act::tanh_q15(rq[2].apply(acc[2])) as i32;
-            let o = act::sigmoid_q15(rq[3].apply(acc[3])) as i32;
-            let fc = (f * (*cj as i32) + (1 << 14)) >> 15;
-            let ig = (i * g + (1 << 18)) >> 19;
-            *cj = sat16(fc + ig);
-            let tc = act::tanh_q15(sat16(2 * (*cj as i32))) as i32;
-            let h = ((o * tc + (1 << 14)) >> 15) as i16;
-            if let Some(q) = h_new.get_mut(j >> 2) {
-                put(q, j & 3, h);
-            }
+        // LSTM gates: one 4-row block per cell (i, f, g, o), the whole layer in one
+        // kernel call from the biases.
+        F::matvec4(acc, self.gate_bias, self.gate_w, z);
+        // Cell updates, two cells (one packed word of h) at a time.
+        let cells = acc
+            .chunks_exact(2)
+            .zip(self.gate_requant.chunks_exact(2))
+            .zip(c.chunks_exact_mut(2))
+            .zip(h_new.as_flattened_mut());
+        for (((a2, rq2), c2), hw) in cells {
+            let h0 = cell_update(&a2[0], &rq2[0], &mut c2[0]);
+            let h1 = cell_update(&a2[1], &rq2[1], &mut c2[1]);
+            *hw = dsp::pack(h0, h1);
         }
         if let Some(hz) = z.get_mut(d.embed_blocks..) {
             for (dst, src) in hz.iter_mut().zip(h_new.iter()) {
@@ -333,14 +337,30 @@ impl<F: WeightFormat> QuantView<'_, F> {
             .chunks_exact(hq)
             .zip(self.out_scale.iter().zip(self.out_offset));
         for (w, (s, off)) in outs {
-            let acc = F::dot4([0; 4], w, h_new);
+            let a = F::dot4([0; 4], w, h_new);
             for r in 0..4 {
                 if let Some(y) = rows.next() {
-                    *y = acc[r] as f32 * s[r] + off[r];
+                    *y = a[r] as f32 * s[r] + off[r];
                 }
             }
         }
     }
+}
+
+/// One LSTM cell from its four gate accumulators (i, f, g, o): updates the Q4.11
+/// cell state `c` and returns the Q0.15 hidden value.
+#[inline(always)]
+fn cell_update(acc: &[i32; 4], rq: &[Requant; 4], c: &mut i16) -> i16 {
+    let i = act::sigmoid_q15(rq[0].apply(acc[0])) as i32;
+    let f = act::sigmoid_q15(rq[1].apply(acc[1])) as i32;
+    let g = act::tanh_q15(rq[2].apply(acc[2])) as i32;
+    let o = act::sigmoid_q15(rq[3].apply(acc[3])) as i32;
+    let fc = (f * (*c as i32) + (1 << 14)) >> 15;
+    let ig = (i * g + (1 << 18)) >> 19;
+    let cn = sat16(fc + ig);
+    *c = cn;
+    let tc = act::tanh_q15(sat16(2 * (cn as i32))) as i32;
+    ((o * tc + (1 << 14)) >> 15) as i16
 }
 
 /// An integer LSTM network of fixed sizes: `I` inputs (padded to `4 * IQ`
@@ -383,13 +403,17 @@ pub struct QuantLstm<
 }
 
 /// The recurrent state of an integer network: the packed `[e; h]` vector (the `h`
-/// part is the state, the `e` part scratch) and the Q4.11 cell state.
+/// part is the state, the `e` part scratch), the Q4.11 cell state, and the gate
+/// accumulators as scratch (kept here so that a step need not clear `16 * H` bytes
+/// of stack; every step overwrites them before reading).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct QuantState<const ZQ: usize, const H: usize> {
     /// Packed `[e; h]`, Q0.15.
     pub z: [[u32; 2]; ZQ],
     /// Cell state, Q4.11.
     pub c: [i16; H],
+    /// Scratch: the last step's gate accumulators (no meaning between steps).
+    pub acc: [[i32; 4]; H],
 }
 
 impl<const ZQ: usize, const H: usize> QuantState<ZQ, H> {
@@ -398,6 +422,7 @@ impl<const ZQ: usize, const H: usize> QuantState<ZQ, H> {
         QuantState {
             z: [[0; 2]; ZQ],
             c: [0; H],
+            acc: [[0; 4]; H],
         }
     }
 
@@ -476,6 +501,7 @@ impl<
             &mut state.c,
             &mut xq,
             &mut h_new,
+            &mut state.acc,
             input,
             &mut out,
         );
@@ -555,8 +581,10 @@ impl F32View<'_> {
         lens.iter().find(|(_, e, a)| e != a).map(|(n, _, _)| *n)
     }
 
-    /// The kernel: one step. `z` (`E + H`) and `c` (`H`) are the state, `xn` (`I`)
-    /// and `h_new` (`H`) scratch. Lengths are trusted (never a panic).
+    /// The kernel: one step. `z` (`E + H`) and `c` (`H`) are the state, `xn` (`I`),
+    /// `h_new` (`H`) and `acc` (`H` blocks) scratch. Lengths are trusted (never a
+    /// panic).
+    #[allow(clippy::too_many_arguments)]
     #[inline(always)]
     pub fn step(
         &self,
@@ -564,6 +592,7 @@ impl F32View<'_> {
         c: &mut [f32],
         xn: &mut [f32],
         h_new: &mut [f32],
+        acc: &mut [[f32; 4]],
         input: &[f32],
         out: &mut [f32],
     ) {
@@ -578,30 +607,30 @@ impl F32View<'_> {
             *n = (x - m) * s;
         }
         let xn: &[f32] = xn;
-        for ((w, b), e4) in self
-            .w_in
-            .chunks_exact(d.input.max(1))
-            .zip(self.b_in)
-            .zip(z.chunks_exact_mut(4))
-        {
-            let acc = dot4_f32([0.0; 4], w, xn);
-            for ((e, a), bb) in e4.iter_mut().zip(acc).zip(b) {
-                *e = math::tanh(a + bb);
+        // Input layer: one kernel call into the e part of z, then tanh in place.
+        let (z4, _) = z.as_chunks_mut::<4>();
+        let e4 = z4.get_mut(..d.embed_blocks).unwrap_or_default();
+        dsp::matvec4_f32(e4, self.w_in, xn);
+        for (e, b) in e4.iter_mut().zip(self.b_in) {
+            for (v, bb) in e.iter_mut().zip(b) {
+                *v = math::tanh_fast(*v + bb);
             }
         }
+        // LSTM gates: the whole layer in one kernel call, then the cells.
         let z_in: &[f32] = z;
-        let rows = self
-            .w_gates
-            .chunks_exact((e_len + d.hidden).max(1))
-            .zip(self.b_gates);
-        for (((w, b), cj), hn) in rows.zip(c.iter_mut()).zip(h_new.iter_mut()) {
-            let acc = dot4_f32([0.0; 4], w, z_in);
-            let i = math::sigmoid(acc[0] + b[0]);
-            let f = math::sigmoid(acc[1] + b[1]);
-            let g = math::tanh(acc[2] + b[2]);
-            let o = math::sigmoid(acc[3] + b[3]);
+        dsp::matvec4_f32(
+            acc,
+            self.w_gates,
+            z_in.get(..e_len + d.hidden).unwrap_or(z_in),
+        );
+        let rows = acc.iter().zip(self.b_gates);
+        for (((acc, b), cj), hn) in rows.zip(c.iter_mut()).zip(h_new.iter_mut()) {
+            let i = math::sigmoid_fast(acc[0] + b[0]);
+            let f = math::sigmoid_fast(acc[1] + b[1]);
+            let g = math::tanh_fast(acc[2] + b[2]);
+            let o = math::sigmoid_fast(acc[3] + b[3]);
             *cj = f * *cj + i * g;
-            *hn = o * math::tanh(*cj);
+            *hn = o * math::tanh_fast(*cj);
         }
         if let Some(hz) = z.get_mut(e_len..) {
             for (dst, src) in hz.iter_mut().zip(h_new.iter()) {
@@ -630,8 +659,9 @@ impl F32View<'_> {
 /// The f32 network of fixed sizes in the exporter's layout: `I` inputs, input layer
 /// of `E = 4 * EB` rows, `H` cells over `Z = E + H` columns (`[e; h]`), `O` outputs
 /// in `OB` blocks. Each block stores its 4 rows column-interleaved (`[k][row]`);
-/// every row sums left to right in f32, sigmoid and tanh are `math::sigmoid` /
-/// `math::tanh` (libm), the arithmetic of `crate::lstm`.
+/// every row sums left to right in f32 as in `crate::lstm`; sigmoid and tanh are
+/// the f32-only `math::sigmoid_fast` / `math::tanh_fast` (within 2e-7 of libm's, so
+/// the step tracks `crate::lstm` to about 1e-7, not bit for bit).
 #[derive(Clone, Copy, Debug)]
 pub struct F32Lstm<
     const I: usize,
@@ -664,13 +694,17 @@ pub struct F32Lstm<
     pub output_mean: [[f32; 4]; OB],
 }
 
-/// The recurrent state of the f32 network: `[e; h]` (the `h` part is the state) and `c`.
+/// The recurrent state of the f32 network: `[e; h]` (the `h` part is the state),
+/// `c`, and the gate sums as scratch (kept here so that a step need not clear
+/// `16 * H` bytes of stack; every step overwrites them before reading).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct F32State<const Z: usize, const H: usize> {
     /// `[e; h]`.
     pub z: [f32; Z],
     /// Cell state.
     pub c: [f32; H],
+    /// Scratch: the last step's gate sums (no meaning between steps).
+    pub acc: [[f32; 4]; H],
 }
 
 impl<const Z: usize, const H: usize> F32State<Z, H> {
@@ -679,6 +713,7 @@ impl<const Z: usize, const H: usize> F32State<Z, H> {
         F32State {
             z: [0.0; Z],
             c: [0.0; H],
+            acc: [[0.0; 4]; H],
         }
     }
     /// Back to the zero state.
@@ -750,6 +785,7 @@ impl<
             &mut state.c,
             &mut xn,
             &mut h_new,
+            &mut state.acc,
             input,
             &mut out,
         );
