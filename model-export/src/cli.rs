@@ -27,12 +27,9 @@ pub enum Command {
     /// Software in the loop: the firmware's control loop drives a simulated joint
     /// (motor, gear, load, sensors); prints tracking error and current per feedforward.
     Sil {
-        /// Simulated seconds per run.
-        #[arg(long, default_value_t = 5.0)]
-        seconds: f64,
-        /// Sensor-noise seed.
-        #[arg(long, default_value_t = 7)]
-        seed: u64,
+        /// Wrist options (`--model` selects the wrist; without it the demos run).
+        #[command(flatten)]
+        wrist: Box<crate::sil::wrist::SilArgs>,
     },
     /// Identify a robot's base parameters (rigid body + friction) from logs by least
     /// squares; write the model JSON and print per-joint RMS errors.
@@ -376,7 +373,13 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
             }
             Ok(())
         }
-        Command::Sil { seconds, seed } => run_sil(seconds, seed),
+        Command::Sil { wrist } => {
+            if wrist.model.is_some() {
+                crate::sil::wrist::run_sil_cli(&wrist)
+            } else {
+                run_sil(wrist.seconds.unwrap_or(5.0), wrist.seed)
+            }
+        }
         Command::Identify(a) => crate::identify::commands::identify(&a),
         Command::Torque(a) => crate::identify::commands::torque(&a),
         Command::Train(a) => train_cmd(a),

@@ -96,6 +96,11 @@ pub struct TorqueArgs {
     /// the measured torque per modelled joint when the input has effort columns.
     #[arg(long, short)]
     pub output: PathBuf,
+    /// Write the LSTM's dataset columns instead (`model-export train --preset paper|feedforward`):
+    /// `t_s`, then per modelled joint j (1-based robot index) `q_j{j}`, `qd_j{j}`,
+    /// `tau_meas_j{j}` (needs effort columns), `tau_model_j{j}`.
+    #[arg(long)]
+    pub features: bool,
     /// Joint selection and model terms (ignored with --model: the model file's are used).
     #[command(flatten)]
     pub joints: JointArgs,
@@ -500,30 +505,34 @@ pub fn identify(a: &IdentifyArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Runs `torque`.
-pub fn torque(a: &TorqueArgs) -> anyhow::Result<()> {
-    let layout = a.layout.layout()?;
-    let pre = a.pre.options()?;
-    let (robot, theta) = match &a.model {
+/// The robot (joint selection and model terms of the model file) and the standard
+/// parameters of an identified model (JSON from `identify`), or, without a model, the
+/// robot's nominal parameters with the selection of `joints`.
+pub fn load_model_robot(
+    robot_path: &Path,
+    model: Option<&Path>,
+    joints: &JointArgs,
+) -> anyhow::Result<(Robot, DVector<f64>)> {
+    Ok(match model {
         None => {
-            let robot = load_robot(&a.robot, &a.joints)?;
+            let robot = load_robot(robot_path, joints)?;
             let theta = robot.standard_parameters();
             (robot, theta)
         }
         Some(mp) => {
             let file = ModelFile::read(mp)?;
-            let hash = sha256_file(&a.robot)
-                .with_context(|| format!("{}: cannot read", a.robot.display()))?;
+            let hash = sha256_file(robot_path)
+                .with_context(|| format!("{}: cannot read", robot_path.display()))?;
             if hash != file.robot.sha256 {
                 bail!(
                     "{}: robot file differs from the one the model was identified for ({}, sha256 {})",
-                    a.robot.display(),
+                    robot_path.display(),
                     file.robot.source_path,
                     file.robot.sha256
                 );
             }
             // Joint selection and model terms come from the model file.
-            let mut robot = Robot::load(&a.robot)?;
+            let mut robot = Robot::load(robot_path)?;
             robot.model_all_joints();
             let t = &file.model_terms;
             robot.terms.viscous_friction = t.viscous_friction;
@@ -565,7 +574,7 @@ pub fn torque(a: &TorqueArgs) -> anyhow::Result<()> {
                 bail!(
                     "{}, field base_parameters: they do not match the base parameters of {} with this joint selection and model terms (--friction-offset, --coulomb-smoothing-rad-s)",
                     mp.display(),
-                    a.robot.display()
+                    robot_path.display()
                 );
             }
             let beta =
@@ -573,7 +582,14 @@ pub fn torque(a: &TorqueArgs) -> anyhow::Result<()> {
             let theta = model.equivalent_standard(&beta);
             (model.robot, theta)
         }
-    };
+    })
+}
+
+/// Runs `torque`.
+pub fn torque(a: &TorqueArgs) -> anyhow::Result<()> {
+    let layout = a.layout.layout()?;
+    let pre = a.pre.options()?;
+    let (robot, theta) = load_model_robot(&a.robot, a.model.as_deref(), &a.joints)?;
     let fw = FirmwareModel::build(&robot, &theta)?;
     let joints = robot.modelled_joints();
     let raw = read_log(&a.log, &layout)?;
@@ -587,6 +603,40 @@ pub fn torque(a: &TorqueArgs) -> anyhow::Result<()> {
     }
     let s = preprocess(&raw, &pre)?;
     let pred = fw.predict(&joints, &s);
+    if a.features {
+        let Some(meas) = &s.torque_nm else {
+            bail!(
+                "{}: --features needs measured torques (effort columns)",
+                a.log.display()
+            );
+        };
+        let mut out = String::from("t_s");
+        for kind in ["q", "qd", "tau_meas", "tau_model"] {
+            for &j in &joints {
+                out.push_str(&format!(",{kind}_j{}", j + 1));
+            }
+        }
+        out.push('\n');
+        for k in 0..s.len() {
+            out.push_str(&format!("{}", s.time_s[k]));
+            for &j in &joints {
+                out.push_str(&format!(",{}", s.q_rad[j][k]));
+            }
+            for &j in &joints {
+                out.push_str(&format!(",{}", s.qd_rad_s[j][k]));
+            }
+            for &j in &joints {
+                out.push_str(&format!(",{}", meas[j][k]));
+            }
+            for p in &pred {
+                out.push_str(&format!(",{}", p[k]));
+            }
+            out.push('\n');
+        }
+        write_atomic(&a.output, out.as_bytes())?;
+        println!("wrote {} ({} samples)", a.output.display(), s.len());
+        return Ok(());
+    }
     let mut out = String::new();
     out.push_str("time_s");
     for &j in &joints {

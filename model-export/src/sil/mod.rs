@@ -9,6 +9,7 @@
 
 pub mod multi;
 pub mod plant;
+pub mod wrist;
 
 use firmware::control::{
     CascadeConfig, Compensator, CompensatorConfig, CurrentLoopConfig, DriveConfig, FaultFlags,

@@ -101,8 +101,13 @@ pub struct SimulateArgs {
     pub plant: PlantArgs,
     /// Commanded trajectory: Fourier coefficients (.json, from `model-export excite`) or a
     /// playback CSV with header t, q1.., qd1.., qdd1.. (any other extension).
-    #[arg(long)]
-    pub trajectory: PathBuf,
+    #[arg(long, required_unless_present = "seeded_trajectory")]
+    pub trajectory: Option<PathBuf>,
+    /// Instead of --trajectory: the built-in seeded rest-to-rest 5-harmonic Fourier
+    /// trajectory (10 s period) of this seed over the --joints (`plant-report` trains on
+    /// seed 1 and tests on seed 2).
+    #[arg(long, conflicts_with = "trajectory")]
+    pub seeded_trajectory: Option<u64>,
     /// Robot joints (1-based, comma separated) driven by the trajectory's joints, in
     /// order; default: the excitation file's `layout.moving`, else 1..n. Example for the
     /// paper's wrist: 4,5,6.
@@ -190,8 +195,21 @@ pub fn run_simulate(args: &SimulateArgs) -> anyhow::Result<()> {
     let arm = super::RobotRigidBody::new(&robot);
     let dof = robot.dof();
     let plant = load_plant(&args.plant)?;
-    let traj = CommandedTrajectory::load(&args.trajectory, args.periods)?;
-    let layout = super::trajectory::excitation_layout(&args.trajectory)
+    ensure!(
+        args.trajectory.is_some() || !args.joints.is_empty(),
+        "--seeded-trajectory needs --joints"
+    );
+    let traj = trajectory_or_seeded(
+        &args.trajectory,
+        args.periods,
+        args.seeded_trajectory.unwrap_or(0),
+        args.joints.len(),
+    )?;
+    let source = args
+        .trajectory
+        .clone()
+        .unwrap_or_else(|| PathBuf::from("seeded trajectory"));
+    let layout = super::trajectory::excitation_layout(&source)
         .filter(|(m, f)| m.len() == traj.joint_count() && f.len() == dof);
     let driven = if let (true, Some((moving, _))) = (args.joints.is_empty(), &layout) {
         moving.clone()
@@ -199,7 +217,7 @@ pub fn run_simulate(args: &SimulateArgs) -> anyhow::Result<()> {
         ensure!(
             traj.joint_count() <= dof,
             "{}: trajectory has {} joints, robot {dof}",
-            args.trajectory.display(),
+            source.display(),
             traj.joint_count()
         );
         (0..traj.joint_count()).collect()
@@ -224,7 +242,9 @@ pub fn run_simulate(args: &SimulateArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn trajectory_or_seeded(
+/// The trajectory file `path` (`periods` periods of a Fourier file), or the built-in
+/// seeded rest-to-rest trajectory of `seed` over `n` joints.
+pub fn trajectory_or_seeded(
     path: &Option<PathBuf>,
     periods: usize,
     seed: u64,
