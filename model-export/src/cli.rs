@@ -24,8 +24,11 @@ pub enum Command {
         #[arg(long, default_value_t = 9)]
         points: usize,
     },
-    /// Software in the loop: the firmware's control loop drives a simulated joint
-    /// (motor, gear, load, sensors); prints tracking error and current per feedforward.
+    /// Software in the loop: the firmware's drives and compensators on the paper's wrist
+    /// (joints 4-6 on the plant simulator's true dynamics, friction and ripple); prints
+    /// per joint RMS tracking error and RMS q current for no feedforward, the identified
+    /// model (--model), and model + LSTM f32 / int16 (--lstm). Without --model: the
+    /// single-joint and coupled-load demos.
     Sil {
         /// Wrist options (`--model` selects the wrist; without it the demos run).
         #[command(flatten)]

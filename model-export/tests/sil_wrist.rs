@@ -5,16 +5,13 @@
 use firmware::control::FaultFlags;
 use firmware::lstm::LstmDims;
 use model_export::nn::model::LstmModel;
-use model_export::sil::wrist::{
-    WRIST_JOINTS, WristFeedforward, WristLstm, WristSetup, run_wrist,
-};
+use model_export::sil::wrist::{WRIST_JOINTS, WristFeedforward, WristLstm, WristSetup, run_wrist};
 use model_export::sim::{CommandedTrajectory, PlantParameters};
 
 fn setup(seconds: f64) -> WristSetup {
-    let robot = model_export::sim::load_robot(std::path::Path::new(
-        model_export::sim::cli::DEFAULT_ROBOT,
-    ))
-    .unwrap();
+    let robot =
+        model_export::sim::load_robot(std::path::Path::new(model_export::sim::cli::DEFAULT_ROBOT))
+            .unwrap();
     let traj: CommandedTrajectory =
         model_export::sim::cli::trajectory_or_seeded(&None, 1, 2, 3).unwrap();
     let mut s = WristSetup::new(robot, PlantParameters::default_robot(), traj, 100.0, 3).unwrap();
@@ -95,7 +92,10 @@ fn lstm_stage_runs_in_both_precisions_through_the_firmware_predictor() {
     let model = nominal_model();
     let lstm = zero_output_lstm();
     let none = run_wrist(&s, WristFeedforward::None, None, None).unwrap();
-    for mode in [WristFeedforward::ModelLstmF32, WristFeedforward::ModelLstmInt16] {
+    for mode in [
+        WristFeedforward::ModelLstmF32,
+        WristFeedforward::ModelLstmInt16,
+    ] {
         let r = run_wrist(&s, mode, Some(&model), Some(&lstm)).unwrap();
         for (a, b) in none.iter().zip(&r) {
             println!("{mode:?}: {b:?}");

@@ -32,9 +32,9 @@ use firmware::control::{
     FrameReceiver, JointDrive, JointReference, JointState, JointStateMessage, LstmPredictor,
     MotorParameters, SensorSample, StateLimits, SubsetModel,
 };
+use firmware::drivers::as5047p::{As5047p, counts_to_rad};
 use firmware::dynamics::RigidBodyModel;
 use firmware::model::default as compiled;
-use firmware::drivers::as5047p::{As5047p, counts_to_rad};
 use heapless::Deque;
 #[cfg(not(feature = "defmt"))]
 use panic_halt as _;
@@ -141,8 +141,11 @@ const MODEL_JOINTS: [usize; JOINTS] = {
 
 /// The model stage: the compiled-in identified dynamics on the compensated joints
 /// (the others held at 0 rad, at rest).
-fn model() -> SubsetModel<&'static RigidBodyModel<{ compiled::DYNAMICS_JOINTS }>, { compiled::DYNAMICS_JOINTS }, JOINTS>
-{
+fn model() -> SubsetModel<
+    &'static RigidBodyModel<{ compiled::DYNAMICS_JOINTS }>,
+    { compiled::DYNAMICS_JOINTS },
+    JOINTS,
+> {
     SubsetModel {
         model: &compiled::DYNAMICS,
         joints: MODEL_JOINTS,
@@ -206,8 +209,7 @@ fn main() -> ! {
     ) else {
         cortex_m::asm::udf();
     };
-    let Ok(mut compensator) =
-        Compensator::<JOINTS, _, _>::new(compensator_config(), model(), lstm)
+    let Ok(mut compensator) = Compensator::<JOINTS, _, _>::new(compensator_config(), model(), lstm)
     else {
         cortex_m::asm::udf();
     };

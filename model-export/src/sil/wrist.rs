@@ -117,15 +117,15 @@ impl<const I: usize, const O: usize> TorqueNetwork<I, O> for HostNetwork {
     fn step(&self, state: &mut HostState, input: &[f32; I]) -> [f32; O] {
         let mut y = [f32::NAN; O];
         match (self, state) {
-            (HostNetwork::F32(n), HostState::F32(z, c, xn, hn)) => {
-                if n.dims.input == I && n.dims.output == O {
-                    n.view().step(z, c, xn, hn, input, &mut y);
-                }
+            (HostNetwork::F32(n), HostState::F32(z, c, xn, hn))
+                if n.dims.input == I && n.dims.output == O =>
+            {
+                n.view().step(z, c, xn, hn, input, &mut y);
             }
-            (HostNetwork::Int16(n), HostState::Int16(z, c, xq, hn)) => {
-                if n.dims.input == I && n.dims.output == O {
-                    n.view().step(z, c, xq, hn, input, &mut y);
-                }
+            (HostNetwork::Int16(n), HostState::Int16(z, c, xq, hn))
+                if n.dims.input == I && n.dims.output == O =>
+            {
+                n.view().step(z, c, xq, hn, input, &mut y);
             }
             _ => {}
         }
@@ -414,7 +414,10 @@ where
 {
     let pwm_hz = setup.motors[0].pwm_hz;
     ensure!(
-        setup.motors.iter().all(|m| m.pwm_hz == pwm_hz && m.substeps >= 1),
+        setup
+            .motors
+            .iter()
+            .all(|m| m.pwm_hz == pwm_hz && m.substeps >= 1),
         "all joints need one PWM rate"
     );
     let mut comps = Vec::with_capacity(J);
@@ -439,8 +442,9 @@ where
     };
     let drive_params: [&sim::JointDrive; J] = WRIST_JOINTS.map(|j| &setup.plant.joints[j]);
     let ambient = setup.plant.ambient_temperature_c;
-    let reflected: [f64; J] =
-        std::array::from_fn(|k| setup.motors[k].rotor_inertia_kg_m2 * setup.motors[k].gear_ratio.powi(2));
+    let reflected: [f64; J] = std::array::from_fn(|k| {
+        setup.motors[k].rotor_inertia_kg_m2 * setup.motors[k].gear_ratio.powi(2)
+    });
     let mut drives: Vec<JointDrive> = setup.drives.iter().map(|d| JointDrive::new(*d)).collect();
     let mut motors: Vec<Motor> = setup
         .motors
@@ -781,7 +785,10 @@ pub fn markdown_table(reports: &[ModeReport]) -> String {
                         "{:+.1} %",
                         100.0 * (j.rms_error_rad / m.joints[k].rms_error_rad - 1.0)
                     ),
-                    format!("{:+.1} %", 100.0 * (j.rms_iq_a / m.joints[k].rms_iq_a - 1.0)),
+                    format!(
+                        "{:+.1} %",
+                        100.0 * (j.rms_iq_a / m.joints[k].rms_iq_a - 1.0)
+                    ),
                 ),
                 _ => (String::new(), String::new()),
             };
