@@ -107,3 +107,96 @@ fn lstm_stage_runs_in_both_precisions_through_the_firmware_predictor() {
         }
     }
 }
+
+fn cli(args: &[&str]) -> anyhow::Result<()> {
+    use clap::Parser;
+    let mut v = vec!["model-export"];
+    v.extend_from_slice(args);
+    model_export::cli::run(model_export::cli::Cli::try_parse_from(v)?)
+}
+
+#[test]
+fn cli_simulate_identify_sil_writes_markdown_and_json() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = |n: &str| dir.path().join(n).to_str().unwrap().to_string();
+    let (log, model, md, json) = (p("log.csv"), p("m.json"), p("sil.md"), p("sil.json"));
+    cli(&[
+        "simulate",
+        "--seeded-trajectory",
+        "1",
+        "--joints",
+        "4,5,6",
+        "-o",
+        &log,
+    ])
+    .unwrap();
+    let layout = [
+        "--layout",
+        "torque",
+        "--header",
+        "yes",
+        "--torque-cols",
+        "20,21,22,23,24,25",
+    ];
+    let mut id = vec![
+        "identify",
+        "--log",
+        &log,
+        "--lock",
+        "1=0,2=0,3=0",
+        "-o",
+        &model,
+    ];
+    id.extend_from_slice(&layout);
+    cli(&id).unwrap();
+    // The LSTM dataset columns.
+    let feat = p("features.csv");
+    let mut tq = vec![
+        "torque",
+        "--model",
+        &model,
+        "--log",
+        &log,
+        "--features",
+        "-o",
+        &feat,
+    ];
+    tq.extend_from_slice(&layout);
+    cli(&tq).unwrap();
+    let header = std::fs::read_to_string(&feat).unwrap();
+    assert!(header.starts_with(
+        "t_s,q_j4,q_j5,q_j6,qd_j4,qd_j5,qd_j6,tau_meas_j4,tau_meas_j5,tau_meas_j6,tau_model_j4,tau_model_j5,tau_model_j6\n"
+    ));
+    cli(&[
+        "sil",
+        "--model",
+        &model,
+        "--seconds",
+        "0.3",
+        "--markdown",
+        &md,
+        "--json",
+        &json,
+    ])
+    .unwrap();
+    let md = std::fs::read_to_string(&md).unwrap();
+    assert!(
+        md.contains("| feedforward | joint | RMS error [mrad]"),
+        "{md}"
+    );
+    assert_eq!(md.matches("| model | ").count(), 3, "{md}");
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let results = v["results"].as_array().unwrap();
+    assert_eq!(results.len(), 2, "none and model (no --lstm)");
+    for r in results {
+        let joints = r["joints"].as_array().unwrap();
+        assert_eq!(joints.len(), 3);
+        for j in joints {
+            assert!(j["rms_error_rad"].as_f64().unwrap() > 0.0);
+            assert!(j["rms_iq_a"].as_f64().unwrap() > 0.0);
+        }
+    }
+    // An LSTM needs the model it corrects.
+    assert!(cli(&["sil", "--lstm", &p("x.safetensors")]).is_err());
+}
