@@ -358,3 +358,74 @@ fn compensator_outputs_stay_finite_and_within_limits() {
         assert!(flags_seen.contains(f), "never exercised: {f:?}");
     }
 }
+
+/// The compensator with the board's real stages (the compiled-in dynamics on the
+/// wrist and the compiled-in LSTM through `LstmPredictor`) on random states, some of
+/// them NaN, infinite, huge or stale: outputs finite and within limits, and a
+/// feedforward from the LSTM only when every input was valid.
+#[test]
+fn compiled_in_model_and_lstm_stay_finite_and_within_limits() {
+    use firmware::model::default as m;
+    const TICKS: u32 = 50_000;
+    // A tight plausibility bound so that the LSTM -> model fallback happens too.
+    let cfg = CompensatorConfig {
+        max_lstm_correction_nm: 2.0,
+        ..compensator_config()
+    };
+    let model = SubsetModel {
+        model: &m::DYNAMICS,
+        joints: [3, 4, 5],
+        fixed_q_rad: [0.0; m::DYNAMICS_JOINTS],
+    };
+    let lstm = LstmPredictor::<_, 3, { m::INPUTS }>::new(&m::NETWORK, m::FEATURE_PRESET).unwrap();
+    let mut comp = Compensator::<3, _, _>::new(cfg, model, lstm).unwrap();
+    let mut rng = ChaCha8Rng::seed_from_u64(0xfeed);
+    let mut now_us = 0u32;
+    let mut seq = 0u16;
+    let mut sources = [0u32; 3];
+    for _ in 0..TICKS {
+        now_us = now_us.wrapping_add(1000);
+        seq = seq.wrapping_add(1);
+        for j in [0u8, 2] {
+            if rng.gen_range(0..50) == 0 {
+                continue; // stale
+            }
+            let corrupt = rng.gen_range(0..30) == 0;
+            let _ = comp.receive(&JointStateMessage {
+                joint: j,
+                sequence: seq,
+                timestamp_us: now_us,
+                state: random_state(&mut rng, corrupt),
+            });
+        }
+        let own_corrupt = rng.gen_range(0..30) == 0;
+        let own = random_state(&mut rng, own_corrupt);
+        let o = comp.tick(&own, now_us);
+        assert!(
+            o.torque_nm.is_finite() && o.torque_nm.abs() <= cfg.max_torque_nm,
+            "{o:?}"
+        );
+        assert!(
+            o.current_a.is_finite() && o.current_a.abs() <= cfg.max_current_a,
+            "{o:?}"
+        );
+        if o.source == FeedforwardSource::ModelLstm {
+            assert!(cfg.state_limits.accepts(&own));
+            assert!(!o.faults.intersects(
+                FaultFlags::OWN_STATE_INVALID | FaultFlags::STATE_STALE | FaultFlags::MODEL_INVALID
+            ));
+        }
+        if !cfg.state_limits.accepts(&own) {
+            assert!(o.faults.contains(FaultFlags::OWN_STATE_INVALID));
+            assert_eq!(o.source, FeedforwardSource::Zero);
+        }
+        if o.faults
+            .intersects(FaultFlags::LSTM_INVALID | FaultFlags::LSTM_IMPLAUSIBLE)
+        {
+            assert_eq!(o.source, FeedforwardSource::Model);
+        }
+        sources[o.source as usize] += 1;
+    }
+    println!("compiled-in stages: {TICKS} ticks; zero / model / model+LSTM: {sources:?}");
+    assert!(sources.iter().all(|&c| c > 100), "{sources:?}");
+}

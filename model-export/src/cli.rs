@@ -24,15 +24,15 @@ pub enum Command {
         #[arg(long, default_value_t = 9)]
         points: usize,
     },
-    /// Software in the loop: the firmware's control loop drives a simulated joint
-    /// (motor, gear, load, sensors); prints tracking error and current per feedforward.
+    /// Software in the loop: the firmware's drives and compensators on the paper's wrist
+    /// (joints 4-6 on the plant simulator's true dynamics, friction and ripple); prints
+    /// per joint RMS tracking error and RMS q current for no feedforward, the identified
+    /// model (--model), and model + LSTM f32 / int16 (--lstm). Without --model: the
+    /// single-joint and coupled-load demos.
     Sil {
-        /// Simulated seconds per run.
-        #[arg(long, default_value_t = 5.0)]
-        seconds: f64,
-        /// Sensor-noise seed.
-        #[arg(long, default_value_t = 7)]
-        seed: u64,
+        /// Wrist options (`--model` selects the wrist; without it the demos run).
+        #[command(flatten)]
+        wrist: Box<crate::sil::wrist::SilArgs>,
     },
     /// Identify a robot's base parameters (rigid body + friction) from logs by least
     /// squares; write the model JSON and print per-joint RMS errors.
@@ -386,7 +386,13 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
             }
             Ok(())
         }
-        Command::Sil { seconds, seed } => run_sil(seconds, seed),
+        Command::Sil { wrist } => {
+            if wrist.model.is_some() {
+                crate::sil::wrist::run_sil_cli(&wrist)
+            } else {
+                run_sil(wrist.seconds.unwrap_or(5.0), wrist.seed)
+            }
+        }
         Command::Identify(a) => crate::identify::commands::identify(&a),
         Command::Torque(a) => crate::identify::commands::torque(&a),
         Command::Train(a) => train_cmd(a),

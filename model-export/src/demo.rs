@@ -308,7 +308,7 @@ pub fn demo(a: &DemoArgs) -> Result<()> {
     for seed in v.lstm_log_seeds.clone() {
         let name = format!("random{seed}");
         let t = vec![
-            s("--random-trajectory"),
+            s("--seeded-trajectory"),
             seed.to_string(),
             s("--joints"),
             s("4,5,6"),

@@ -28,11 +28,13 @@ use cortex_m::interrupt::Mutex;
 use cortex_m::peripheral::{DWT, syst::SystClkSource};
 use cortex_m_rt::{ExceptionFrame, entry, exception};
 use firmware::control::{
-    CascadeConfig, Compensator, CompensatorConfig, CurrentLoopConfig, DecoupledJointModel,
-    DriveConfig, FaultFlags, FrameReceiver, JointDrive, JointReference, JointState,
-    JointStateMessage, MotorParameters, NoPredictor, SensorSample, StateLimits,
+    CascadeConfig, Compensator, CompensatorConfig, CurrentLoopConfig, DriveConfig, FaultFlags,
+    FrameReceiver, JointDrive, JointReference, JointState, JointStateMessage, LstmPredictor,
+    MotorParameters, SensorSample, StateLimits, SubsetModel,
 };
 use firmware::drivers::as5047p::{As5047p, counts_to_rad};
+use firmware::dynamics::RigidBodyModel;
+use firmware::model::default as compiled;
 use heapless::Deque;
 #[cfg(not(feature = "defmt"))]
 use panic_halt as _;
@@ -42,14 +44,16 @@ use {defmt_rtt as _, panic_probe as _};
 
 /// Core clock: HSI16 through the PLL (boost mode).
 const CORE_CLOCK_HZ: u32 = 170_000_000;
-/// Control tick rate (SysTick): the compensator tick.
-const TICK_HZ: u32 = 1_000;
+/// Control tick rate (SysTick): the compensator tick, at the rate the compiled-in
+/// network was trained for.
+const TICK_HZ: u32 = compiled::CONTROL_RATE_HZ;
 /// PWM frequency, Hz.
 const PWM_HZ: u32 = 20_000;
 /// TIM1 auto-reload for center-aligned PWM at `PWM_HZ`.
 const PWM_ARR: u16 = (CORE_CLOCK_HZ / (2 * PWM_HZ)) as u16;
-/// Modelled joints (the wrist: joints 4, 5, 6) and this MCU's index among them.
-const JOINTS: usize = 3;
+/// Compensated joints of the compiled-in model (the wrist: joints 4, 5, 6) and this
+/// MCU's index among them.
+const JOINTS: usize = compiled::JOINT_INDICES.len();
 const OWN_JOINT: usize = 0;
 /// Phase-current scale of the board's shunt amplifiers, A per ADC count, and
 /// their zero (mid-scale).
@@ -120,15 +124,32 @@ fn compensator_config() -> CompensatorConfig {
     }
 }
 
-/// The model stage until the identified multi-joint model is compiled in.
-fn model() -> DecoupledJointModel<JOINTS> {
-    DecoupledJointModel {
-        inertia_kg_m2: [0.8; JOINTS],
-        viscous_nm_s_rad: [3.0; JOINTS],
-        coulomb_nm: [5.0; JOINTS],
-        coulomb_smoothing_rad_s: [0.02; JOINTS],
-        gravity_nm: [0.0; JOINTS],
-        gravity_phase_rad: [0.0; JOINTS],
+/// Index in the compiled-in dynamics of each compensated joint: the robot joint
+/// indices when the dynamics cover the whole arm, else (joints locked away at export)
+/// 0..JOINTS.
+const MODEL_JOINTS: [usize; JOINTS] = {
+    let mut m = compiled::JOINT_INDICES;
+    if compiled::DYNAMICS_JOINTS == JOINTS {
+        let mut k = 0;
+        while k < JOINTS {
+            m[k] = k;
+            k += 1;
+        }
+    }
+    m
+};
+
+/// The model stage: the compiled-in identified dynamics on the compensated joints
+/// (the others held at 0 rad, at rest).
+fn model() -> SubsetModel<
+    &'static RigidBodyModel<{ compiled::DYNAMICS_JOINTS }>,
+    { compiled::DYNAMICS_JOINTS },
+    JOINTS,
+> {
+    SubsetModel {
+        model: &compiled::DYNAMICS,
+        joints: MODEL_JOINTS,
+        fixed_q_rad: [0.0; compiled::DYNAMICS_JOINTS],
     }
 }
 
@@ -181,8 +202,14 @@ fn main() -> ! {
             });
         }
     });
-    let Ok(mut compensator) =
-        Compensator::<JOINTS, _, _>::new(compensator_config(), model(), NoPredictor)
+    // The LSTM stage: the compiled-in network in its preset's feature layout.
+    let Some(lstm) = LstmPredictor::<_, JOINTS, { compiled::INPUTS }>::new(
+        &compiled::NETWORK,
+        compiled::FEATURE_PRESET,
+    ) else {
+        cortex_m::asm::udf();
+    };
+    let Ok(mut compensator) = Compensator::<JOINTS, _, _>::new(compensator_config(), model(), lstm)
     else {
         cortex_m::asm::udf();
     };

@@ -32,7 +32,7 @@ pub use drive::{DriveConfig, DriveOutput, JointDrive, SensorSample};
 pub use faults::FaultFlags;
 pub use foc::{CurrentLoop, CurrentLoopConfig, MotorParameters};
 pub use message::{FrameReceiver, JointState, JointStateMessage, StateLimits};
-pub use predictors::DecoupledJointModel;
+pub use predictors::{DecoupledJointModel, LstmPredictor, SubsetModel, TorqueNetwork};
 
 /// `x` limited to [-limit, limit] without a panic path (`f32::clamp` asserts its
 /// bounds): a negative or NaN limit counts as 0, a NaN `x` gives 0.

@@ -1,10 +1,207 @@
-//! Simple predictors that plug into the [`TorquePredictor`] trait: a decoupled
-//! per-joint model (inertia, viscous and Coulomb friction, gravity on a lever).
-//! The identified multi-joint dynamics model (`crate::dynamics`) and the LSTM
-//! (`crate::lstm`) implement the same trait.
+//! Predictors that plug into the [`TorquePredictor`] trait:
+//! - [`RigidBodyModel`] (the identified dynamics, all its joints compensated) and
+//!   [`SubsetModel`] (a larger model of which `J` joints are compensated, the others
+//!   held at fixed positions, e.g. the wrist of a 6-joint arm): the model stage;
+//! - [`LstmPredictor`]: the exported LSTM in any precision behind [`TorqueNetwork`],
+//!   for the `paper` preset (next-step torque from model torque, measured torque and
+//!   position) or the `feedforward` preset (model torque + learned residual): the
+//!   LSTM stage;
+//! - [`DecoupledJointModel`]: a per-joint model without coupling (tests, bring-up).
+//!
+//! All run in fixed time, without heap or panic paths.
 
 use super::compensator::{PredictorInput, TorquePredictor};
+use crate::dynamics::RigidBodyModel;
 use crate::math;
+use crate::model::FeaturePreset;
+use crate::quant::{F32Lstm, F32State, QuantLstm, QuantState, WeightFormat};
+use core::borrow::Borrow;
+
+/// The model's torques on every joint's reference (`q_ref`, `qd_ref`, `qdd_ref`).
+impl<const J: usize> TorquePredictor<J> for RigidBodyModel<J> {
+    fn predict_nm(&mut self, input: &PredictorInput<J>) -> [f32; J] {
+        self.torques(
+            &input.joints.map(|s| s.q_ref_rad),
+            &input.joints.map(|s| s.qd_ref_rad_s),
+            &input.joints.map(|s| s.qdd_ref_rad_s2),
+        )
+    }
+    fn reset(&mut self) {}
+}
+
+/// `J` compensated joints of an `N`-joint rigid-body model: joint `k` of the
+/// compensator is model joint `joints[k]`; every other model joint stays at
+/// `fixed_q_rad` (at rest). `M` is the model or a reference to it (a `static`).
+#[derive(Clone, Copy, Debug)]
+pub struct SubsetModel<M, const N: usize, const J: usize> {
+    /// The model.
+    pub model: M,
+    /// Model joint index of each compensated joint (out-of-range indices are ignored:
+    /// that joint's torque is NaN, which the compensator rejects).
+    pub joints: [usize; J],
+    /// Positions of the model's joints, rad (the compensated ones are overwritten).
+    pub fixed_q_rad: [f32; N],
+}
+
+impl<M: Borrow<RigidBodyModel<N>>, const N: usize, const J: usize> TorquePredictor<J>
+    for SubsetModel<M, N, J>
+{
+    fn predict_nm(&mut self, input: &PredictorInput<J>) -> [f32; J] {
+        let mut q = self.fixed_q_rad;
+        let mut qd = [0.0f32; N];
+        let mut qdd = [0.0f32; N];
+        for (s, &m) in input.joints.iter().zip(self.joints.iter()) {
+            if let (Some(a), Some(b), Some(c)) = (q.get_mut(m), qd.get_mut(m), qdd.get_mut(m)) {
+                *a = s.q_ref_rad;
+                *b = s.qd_ref_rad_s;
+                *c = s.qdd_ref_rad_s2;
+            }
+        }
+        let tau = self.model.borrow().torques(&q, &qd, &qdd);
+        self.joints.map(|m| tau.get(m).copied().unwrap_or(f32::NAN))
+    }
+    fn reset(&mut self) {}
+}
+
+/// A recurrent network stepped once per compensator tick, `I` raw inputs to `O`
+/// de-normalised outputs: the exported LSTM in any precision.
+pub trait TorqueNetwork<const I: usize, const O: usize> {
+    /// Its recurrent state.
+    type State;
+    /// The zero state a sequence starts from.
+    fn zero_state(&self) -> Self::State;
+    /// One step: advances `state` by `input`, returns the outputs.
+    fn step(&self, state: &mut Self::State, input: &[f32; I]) -> [f32; O];
+}
+
+impl<
+    F: WeightFormat,
+    const I: usize,
+    const IQ: usize,
+    const EB: usize,
+    const H: usize,
+    const HQ: usize,
+    const ZQ: usize,
+    const O: usize,
+    const OB: usize,
+> TorqueNetwork<I, O> for QuantLstm<F, I, IQ, EB, H, HQ, ZQ, O, OB>
+{
+    type State = QuantState<ZQ, H>;
+    fn zero_state(&self) -> Self::State {
+        QuantState::new()
+    }
+    fn step(&self, state: &mut Self::State, input: &[f32; I]) -> [f32; O] {
+        QuantLstm::step(self, state, input)
+    }
+}
+
+impl<
+    const I: usize,
+    const E: usize,
+    const EB: usize,
+    const H: usize,
+    const Z: usize,
+    const O: usize,
+    const OB: usize,
+> TorqueNetwork<I, O> for F32Lstm<I, E, EB, H, Z, O, OB>
+{
+    type State = F32State<Z, H>;
+    fn zero_state(&self) -> Self::State {
+        F32State::new()
+    }
+    fn step(&self, state: &mut Self::State, input: &[f32; I]) -> [f32; O] {
+        F32Lstm::step(self, state, input)
+    }
+}
+
+impl<T: TorqueNetwork<I, O> + ?Sized, const I: usize, const O: usize> TorqueNetwork<I, O> for &T {
+    type State = T::State;
+    fn zero_state(&self) -> Self::State {
+        (**self).zero_state()
+    }
+    fn step(&self, state: &mut Self::State, input: &[f32; I]) -> [f32; O] {
+        (**self).step(state, input)
+    }
+}
+
+/// The LSTM stage for `J` joints (`I = 3 J` inputs, `J` outputs, checked at compile
+/// time), in the feature layout of its preset (all joints of one kind, then the next):
+///
+/// - `paper`: inputs `tau_model`, `tau_meas`, `q` -> the torque one tick later, as the
+///   increment over `tau_meas` that the network predicts ([`FeaturePreset::torque_nm`]). The
+///   network was trained on (inputs at step k, torque at k+1), so each tick pairs the
+///   model torque and position of the *previous* tick (the instant the feedforward was
+///   computed for then) with the torque measured since (`tau_meas`, e.g. the mean over
+///   the last compensator period): the output is the torque for this tick's instant.
+///   Positions are the references (`q_ref`), which the joint tracks to encoder level.
+/// - `feedforward`: inputs `tau_model`, `q`, `qd` -> residual; the prediction is
+///   `tau_model + residual` on this tick's references.
+pub struct LstmPredictor<N: TorqueNetwork<I, J>, const J: usize, const I: usize> {
+    network: N,
+    state: N::State,
+    preset: FeaturePreset,
+    previous: Option<([f32; J], [f32; J])>,
+}
+
+impl<N: TorqueNetwork<I, J>, const J: usize, const I: usize> LstmPredictor<N, J, I> {
+    const LAYOUT: () = assert!(I == 3 * J, "an LSTM stage of J joints takes 3 J inputs");
+
+    /// The stage for a network trained with `preset` (`Custom` has no known layout:
+    /// `None`).
+    pub fn new(network: N, preset: FeaturePreset) -> Option<Self> {
+        let () = Self::LAYOUT;
+        if preset == FeaturePreset::Custom {
+            return None;
+        }
+        let state = network.zero_state();
+        Some(Self {
+            network,
+            state,
+            preset,
+            previous: None,
+        })
+    }
+
+    /// The network.
+    pub fn network(&self) -> &N {
+        &self.network
+    }
+}
+
+impl<N: TorqueNetwork<I, J>, const J: usize, const I: usize> TorquePredictor<J>
+    for LstmPredictor<N, J, I>
+{
+    fn predict_nm(&mut self, input: &PredictorInput<J>) -> [f32; J] {
+        let q_ref = input.joints.map(|s| s.q_ref_rad);
+        let tau_meas = input.joints.map(|s| s.tau_meas_nm);
+        let mut x = [0.0f32; I];
+        if self.preset == FeaturePreset::Feedforward {
+            let qd_ref = input.joints.map(|s| s.qd_ref_rad_s);
+            let features = input.model_nm.iter().chain(&q_ref).chain(&qd_ref);
+            for (v, f) in x.iter_mut().zip(features) {
+                *v = *f;
+            }
+        } else {
+            let (model_prev, q_prev) = self.previous.unwrap_or((input.model_nm, q_ref));
+            let features = model_prev.iter().chain(&tau_meas).chain(&q_prev);
+            for (v, f) in x.iter_mut().zip(features) {
+                *v = *f;
+            }
+            self.previous = Some((input.model_nm, q_ref));
+        }
+        let y = self.network.step(&mut self.state, &x);
+        let mut out = [0.0f32; J];
+        for (j, o) in out.iter_mut().enumerate() {
+            *o = self.preset.torque_nm(y[j], tau_meas[j], input.model_nm[j]);
+        }
+        out
+    }
+
+    fn reset(&mut self) {
+        self.state = self.network.zero_state();
+        self.previous = None;
+    }
+}
 
 /// tau_j = I_j qdd_j + D_j qd_j + mu_j tanh(qd_j / v_j) + g_j sin(q_j + phi_j) on each
 /// joint's reference, ignoring the coupling between joints.
@@ -43,6 +240,85 @@ impl<const J: usize> TorquePredictor<J> for DecoupledJointModel<J> {
 mod tests {
     use super::*;
     use crate::control::JointState;
+    use crate::model::{bench_joint_int16 as net1, default as dm};
+
+    fn input1(q: f32, qd: f32, tau_meas: f32, model: f32) -> PredictorInput<1> {
+        PredictorInput {
+            joints: [JointState {
+                q_ref_rad: q,
+                qd_ref_rad_s: qd,
+                tau_meas_nm: tau_meas,
+                ..Default::default()
+            }],
+            own_joint: 0,
+            model_nm: [model],
+        }
+    }
+
+    #[test]
+    fn paper_stage_pairs_the_previous_model_torque_with_the_new_measurement() {
+        let mut p = LstmPredictor::<_, 1, 3>::new(&net1::NETWORK, FeaturePreset::Paper).unwrap();
+        let mut st = net1::State::new();
+        // First tick after a reset: no previous tick, this tick's values.
+        // The prediction is the measured torque plus the network's increment.
+        let y = p.predict_nm(&input1(0.3, 1.0, 2.0, 1.5));
+        assert_eq!(y, [2.0 + net1::NETWORK.step(&mut st, &[1.5, 2.0, 0.3])[0]]);
+        // Then: previous model torque and position, this tick's measured torque.
+        let y = p.predict_nm(&input1(0.4, 1.0, 2.5, 1.7));
+        assert_eq!(y, [2.5 + net1::NETWORK.step(&mut st, &[1.5, 2.5, 0.3])[0]]);
+        let y = p.predict_nm(&input1(0.5, 1.0, 2.6, 1.9));
+        assert_eq!(y, [2.6 + net1::NETWORK.step(&mut st, &[1.7, 2.6, 0.4])[0]]);
+        // Reset forgets both the recurrent state and the previous tick.
+        p.reset();
+        let mut st = net1::State::new();
+        let y = p.predict_nm(&input1(0.6, 1.0, 2.7, 2.0));
+        assert_eq!(y, [2.7 + net1::NETWORK.step(&mut st, &[2.0, 2.7, 0.6])[0]]);
+    }
+
+    #[test]
+    fn feedforward_stage_adds_the_residual_to_the_model() {
+        let mut p =
+            LstmPredictor::<_, 1, 3>::new(&net1::NETWORK, FeaturePreset::Feedforward).unwrap();
+        let mut st = net1::State::new();
+        for k in 0..5 {
+            let (q, qd, m) = (0.1 * k as f32, 0.5, 3.0 + k as f32);
+            let y = p.predict_nm(&input1(q, qd, 9.0, m));
+            let r = net1::NETWORK.step(&mut st, &[m, q, qd]);
+            assert_eq!(y, [m + r[0]]);
+        }
+        assert!(LstmPredictor::<_, 1, 3>::new(&net1::NETWORK, FeaturePreset::Custom).is_none());
+    }
+
+    #[test]
+    fn subset_model_is_the_full_model_with_the_other_joints_at_rest() {
+        let mut sub = SubsetModel {
+            model: &dm::DYNAMICS,
+            joints: [3, 4, 5],
+            fixed_q_rad: [0.0; 6],
+        };
+        let s = |q: f32, qd: f32, qdd: f32| JointState {
+            q_ref_rad: q,
+            qd_ref_rad_s: qd,
+            qdd_ref_rad_s2: qdd,
+            ..Default::default()
+        };
+        let input = PredictorInput {
+            joints: [s(0.3, 0.5, 2.0), s(-0.7, -1.0, 1.0), s(1.1, 0.2, -3.0)],
+            own_joint: 1,
+            model_nm: [0.0; 3],
+        };
+        let y = sub.predict_nm(&input);
+        let full = dm::DYNAMICS.torques(
+            &[0.0, 0.0, 0.0, 0.3, -0.7, 1.1],
+            &[0.0, 0.0, 0.0, 0.5, -1.0, 0.2],
+            &[0.0, 0.0, 0.0, 2.0, 1.0, -3.0],
+        );
+        assert_eq!(y, [full[3], full[4], full[5]]);
+        assert!(y.iter().all(|t| t.is_finite() && *t != 0.0));
+        // A wrong index gives NaN (rejected by the compensator), never a panic.
+        sub.joints = [3, 4, 9];
+        assert!(sub.predict_nm(&input)[2].is_nan());
+    }
 
     #[test]
     fn decoupled_model_terms() {

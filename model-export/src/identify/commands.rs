@@ -572,18 +572,28 @@ pub fn load_identified(robot_path: &Path, mp: &Path) -> anyhow::Result<(Robot, D
     Ok((model.robot, theta))
 }
 
+/// The robot and standard parameters of an identified model ([`load_identified`]), or,
+/// without a model, the robot's nominal parameters with the selection of `joints`.
+pub fn load_model_robot(
+    robot_path: &Path,
+    model: Option<&Path>,
+    joints: &JointArgs,
+) -> anyhow::Result<(Robot, DVector<f64>)> {
+    match model {
+        None => {
+            let robot = load_robot(robot_path, joints)?;
+            let theta = robot.standard_parameters();
+            Ok((robot, theta))
+        }
+        Some(mp) => load_identified(robot_path, mp),
+    }
+}
+
 /// Runs `torque`.
 pub fn torque(a: &TorqueArgs) -> anyhow::Result<()> {
     let layout = a.layout.layout()?;
     let pre = a.pre.options()?;
-    let (robot, theta) = match &a.model {
-        None => {
-            let robot = load_robot(&a.robot, &a.joints)?;
-            let theta = robot.standard_parameters();
-            (robot, theta)
-        }
-        Some(mp) => load_identified(&a.robot, mp)?,
-    };
+    let (robot, theta) = load_model_robot(&a.robot, a.model.as_deref(), &a.joints)?;
     let fw = FirmwareModel::build(&robot, &theta)?;
     let joints = robot.modelled_joints();
     let raw = read_log(&a.log, &layout)?;

@@ -2,13 +2,16 @@
 //! drive a simulated joint plant through PWM duties, on the host.
 //!
 //! [`plant`] holds the motor, gear, sensors and the [`plant::JointLoad`] trait through
-//! which a load plugs in (here a single joint with inertia, friction and gravity;
-//! the multi-joint plant simulator provides one load per joint). [`run_single_joint`]
+//! which a load plugs in (here a single joint with inertia, friction and gravity).
+//! [`multi`] couples several joints through a test mechanism; [`wrist`] runs the
+//! paper's wrist on the plant simulator's true dynamics, friction and ripple with
+//! the identified model and the LSTM as feedforward (`model-export sil --model`). [`run_single_joint`]
 //! closes the loop: sensors -> `JointDrive::pwm_tick` -> duties -> plant, with the
 //! `Compensator` feeding the torque feedforward at its own rate.
 
 pub mod multi;
 pub mod plant;
+pub mod wrist;
 
 use firmware::control::{
     CascadeConfig, Compensator, CompensatorConfig, CurrentLoopConfig, DriveConfig, FaultFlags,

@@ -18,9 +18,9 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::Normal;
 
-/// Joint-side mechanics of `J` coupled joints: M(q) qdd + h(q, qd) = tau. The
-/// multi-joint plant simulator (true rigid-body dynamics, friction, ripple)
-/// implements this; the motors' rotor inertias are added by the plant.
+/// Joint-side mechanics of `J` coupled joints: M(q) qdd + h(q, qd) = tau (a test
+/// mechanism; the plant simulator's true wrist runs in [`super::wrist`]); the motors'
+/// rotor inertias are added by the plant.
 pub trait JointMechanics<const J: usize> {
     /// Mass matrix M(q), kg*m^2 (without the rotors).
     fn mass_matrix(&mut self, q_rad: &[f64; J]) -> [[f64; J]; J];

@@ -101,13 +101,13 @@ pub struct SimulateArgs {
     pub plant: PlantArgs,
     /// Commanded trajectory: Fourier coefficients (.json, from `model-export excite`) or a
     /// playback CSV with header t, q1.., qd1.., qdd1.. (any other extension).
-    #[arg(long, required_unless_present = "random_trajectory")]
+    #[arg(long, required_unless_present = "seeded_trajectory")]
     pub trajectory: Option<PathBuf>,
-    /// Instead of --trajectory: the seeded rest-to-rest 5-harmonic Fourier trajectory
-    /// (10 s period, |q| <= 2.5 rad, |qd| <= 2.5 rad/s, |qdd| <= 10 rad/s^2) with this
-    /// seed, one joint per --joints entry: varied data for training the LSTM.
-    #[arg(long, conflicts_with = "trajectory", value_name = "SEED")]
-    pub random_trajectory: Option<u64>,
+    /// Instead of --trajectory: the built-in seeded rest-to-rest 5-harmonic Fourier
+    /// trajectory (10 s period) of this seed over the --joints (`plant-report` trains on
+    /// seed 1 and tests on seed 2).
+    #[arg(long, conflicts_with = "trajectory")]
+    pub seeded_trajectory: Option<u64>,
     /// Robot joints (1-based, comma separated) driven by the trajectory's joints, in
     /// order; default: the excitation file's `layout.moving`, else 1..n. Example for the
     /// paper's wrist: 4,5,6.
@@ -195,33 +195,29 @@ pub fn run_simulate(args: &SimulateArgs) -> anyhow::Result<()> {
     let arm = super::RobotRigidBody::new(&robot);
     let dof = robot.dof();
     let plant = load_plant(&args.plant)?;
-    let (traj, layout) = match (&args.trajectory, args.random_trajectory) {
-        (Some(path), _) => {
-            let traj = CommandedTrajectory::load(path, args.periods)?;
-            let layout = super::trajectory::excitation_layout(path)
-                .filter(|(m, f)| m.len() == traj.joint_count() && f.len() == dof);
-            (traj, layout)
-        }
-        (None, seed) => {
-            ensure!(
-                !args.joints.is_empty(),
-                "--random-trajectory needs --joints (the robot joints it drives)"
-            );
-            let n = args.joints.len();
-            let seed = seed.unwrap_or_default();
-            (trajectory_or_seeded(&None, args.periods, seed, n)?, None)
-        }
-    };
-    let source = args.trajectory.as_ref().map_or_else(
-        || "the seeded trajectory".into(),
-        |p| p.display().to_string(),
+    ensure!(
+        args.trajectory.is_some() || !args.joints.is_empty(),
+        "--seeded-trajectory needs --joints"
     );
+    let traj = trajectory_or_seeded(
+        &args.trajectory,
+        args.periods,
+        args.seeded_trajectory.unwrap_or(0),
+        args.joints.len(),
+    )?;
+    let source = args
+        .trajectory
+        .clone()
+        .unwrap_or_else(|| PathBuf::from("seeded trajectory"));
+    let layout = super::trajectory::excitation_layout(&source)
+        .filter(|(m, f)| m.len() == traj.joint_count() && f.len() == dof);
     let driven = if let (true, Some((moving, _))) = (args.joints.is_empty(), &layout) {
         moving.clone()
     } else if args.joints.is_empty() {
         ensure!(
             traj.joint_count() <= dof,
-            "{source}: trajectory has {} joints, robot {dof}",
+            "{}: trajectory has {} joints, robot {dof}",
+            source.display(),
             traj.joint_count()
         );
         (0..traj.joint_count()).collect()
@@ -246,7 +242,9 @@ pub fn run_simulate(args: &SimulateArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn trajectory_or_seeded(
+/// The trajectory file `path` (`periods` periods of a Fourier file), or the built-in
+/// seeded rest-to-rest trajectory of `seed` over `n` joints.
+pub fn trajectory_or_seeded(
     path: &Option<PathBuf>,
     periods: usize,
     seed: u64,

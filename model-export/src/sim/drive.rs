@@ -34,6 +34,52 @@ impl DriveState {
     }
 }
 
+impl DriveTorque {
+    /// Sum of the parts [N*m].
+    pub fn total_nm(&self) -> f64 {
+        self.friction_nm + self.ripple_nm + self.rotor_nm
+    }
+}
+
+/// One joint's drive over one step of `dt_s`: advances the friction memory (LuGre) at
+/// velocity `qd` with transmitted (rigid-body) torque `load_nm`, and returns the torque
+/// the drive adds beyond the rigid body at position `q` and acceleration `qdd`: friction
+/// (viscous at the node's temperature, see [`viscous_at`]), ripple and the reflected
+/// rotor inertia, each as `effects` selects. The plant simulator (inverse dynamics
+/// along a trajectory) and the closed-loop SIL (forward dynamics, `qdd = 0`: the rotor
+/// is in its mass matrix) both call it. The thermal node is advanced separately
+/// ([`thermal_step`]) because it needs the motor current.
+#[allow(clippy::too_many_arguments)]
+pub fn drive_torque_step(
+    drive: &JointDrive,
+    effects: &PlantEffects,
+    state: &mut DriveState,
+    q: f64,
+    qd: f64,
+    qdd: f64,
+    load_nm: f64,
+    ambient_c: f64,
+    dt_s: f64,
+) -> DriveTorque {
+    let viscous = viscous_at(drive, state.temperature_c, ambient_c, effects.thermal);
+    let friction_nm = friction_step(drive, effects, state, qd, load_nm, viscous, dt_s);
+    let ripple_nm = if effects.ripple {
+        ripple_at(drive, q)
+    } else {
+        0.0
+    };
+    let rotor_nm = if effects.rotor_inertia {
+        drive.reflected_rotor_inertia_kgm2() * qdd
+    } else {
+        0.0
+    };
+    DriveTorque {
+        friction_nm,
+        ripple_nm,
+        rotor_nm,
+    }
+}
+
 /// Viscous coefficient at temperature T: `D(T) = D0 exp(-kappa (T - T_ref))` [N*m*s/rad].
 pub fn viscous_at(drive: &JointDrive, temperature_c: f64, reference_c: f64, thermal: bool) -> f64 {
     if thermal {

@@ -230,26 +230,19 @@ pub fn simulate<R: RigidBodyModel + ?Sized>(
         arm.inverse_dynamics(&q, &qd, &qdd, &mut rigid);
         let dt = if step == 0 { 0.0 } else { h };
         for j in 0..dof {
-            let d = &plant.joints[j];
-            let viscous = drive::viscous_at(d, state[j].temperature_c, ambient, fx.thermal);
-            let friction =
-                drive::friction_step(d, &fx, &mut state[j], qd[j], rigid[j], viscous, dt);
-            let ripple = if fx.ripple {
-                drive::ripple_at(d, q[j])
-            } else {
-                0.0
-            };
-            let rotor = if fx.rotor_inertia {
-                d.reflected_rotor_inertia_kgm2() * qdd[j]
-            } else {
-                0.0
-            };
-            parts[j] = DriveTorque {
-                friction_nm: friction,
-                ripple_nm: ripple,
-                rotor_nm: rotor,
-            };
-            current[j] = (rigid[j] + friction + ripple + rotor) / gains[j];
+            parts[j] = drive::drive_torque_step(
+                &plant.joints[j],
+                &fx,
+                &mut state[j],
+                q[j],
+                qd[j],
+                qdd[j],
+                rigid[j],
+                ambient,
+                dt,
+            );
+            let p = parts[j];
+            current[j] = (rigid[j] + p.friction_nm + p.ripple_nm + p.rotor_nm) / gains[j];
         }
         if step % every == 0 {
             for j in 0..dof {
