@@ -107,6 +107,11 @@ pub struct TrainArgs {
     /// CSV logs (repeat or comma-separate); windows never cross files.
     #[arg(long, required = true, value_delimiter = ',')]
     pub data: Vec<PathBuf>,
+    /// Validation logs, used whole (early stopping and learning-rate choice on runs the
+    /// network never trains on); without them, the `--val-fraction` block of each
+    /// training log validates.
+    #[arg(long, value_delimiter = ',')]
+    pub validation_data: Vec<PathBuf>,
     /// Features.
     #[command(flatten)]
     pub features: FeatureArgs,
@@ -227,12 +232,17 @@ fn train_cmd(a: TrainArgs) -> Result<()> {
     let mut tr = Vec::new();
     let mut va = Vec::new();
     let mut te = Vec::new();
+    let held_out = !a.validation_data.is_empty();
     for s in load(&a.data, &spec)? {
-        let (x, y, z) = s.split(cfg.val_fraction, cfg.test_fraction)?;
+        let val_fraction = if held_out { 0.0 } else { cfg.val_fraction };
+        let (x, y, z) = s.split(val_fraction, cfg.test_fraction)?;
         tr.push(x);
-        va.push(y);
+        if !held_out {
+            va.push(y);
+        }
         te.push(z);
     }
+    va.extend(load(&a.validation_data, &spec)?);
     let all_train = Sequence {
         inputs: tr.iter().flat_map(|s| s.inputs.clone()).collect(),
         targets: tr.iter().flat_map(|s| s.targets.clone()).collect(),
