@@ -198,8 +198,8 @@ pub fn run(a: &ExciteArgs) -> anyhow::Result<()> {
         family.grid_points()
     );
     let d = design(&model, family.clone(), &settings).with_context(|| legend.clone())?;
-    let baseline = (a.baseline > 0)
-        .then(|| random_baseline(&model, &family, a.baseline, a.seed, a.rate));
+    let baseline =
+        (a.baseline > 0).then(|| random_baseline(&model, &family, a.baseline, a.seed, a.rate));
     let random_cond = baseline.as_ref().map(|b| b.condition().median);
     println!(
         "{:>3} {:>20} {:>12} {:>8}  stopped",

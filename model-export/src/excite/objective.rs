@@ -205,7 +205,11 @@ fn extremes(eig: &[f64]) -> (f64, f64) {
         lmin = lmin.min(l);
         lmax = lmax.max(l);
     }
-    if !lmin.is_finite() { (0.0, 1.0) } else { (lmin, lmax) }
+    if !lmin.is_finite() {
+        (0.0, 1.0)
+    } else {
+        (lmin, lmax)
+    }
 }
 
 /// The observation matrix `W` of a trajectory sampled at `rate_hz` over one period (period end
