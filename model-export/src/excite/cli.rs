@@ -198,8 +198,16 @@ pub fn run(a: &ExciteArgs) -> anyhow::Result<()> {
         family.grid_points()
     );
     let d = design(&model, family.clone(), &settings).with_context(|| legend.clone())?;
-    let baseline =
-        (a.baseline > 0).then(|| random_baseline(&model, &family, a.baseline, a.seed, a.rate));
+    // Random members shrink toward the particular solution: only meaningful when it is feasible
+    // (always, unless point constraints move it outside the limits).
+    let particular_feasible = family.particular_margins().iter().all(|m| m.margin >= 0.0);
+    if a.baseline > 0 && !particular_feasible {
+        println!(
+            "random baseline skipped: the point constraints' particular solution breaks a limit"
+        );
+    }
+    let baseline = (a.baseline > 0 && particular_feasible)
+        .then(|| random_baseline(&model, &family, a.baseline, a.seed, a.rate));
     let random_cond = baseline.as_ref().map(|b| b.condition().median);
     println!(
         "{:>3} {:>20} {:>12} {:>8}  stopped",

@@ -64,7 +64,7 @@ pub struct ExcitationSettings {
     /// How a decision vector is repaired into the limits (default: per joint).
     #[serde(default)]
     pub repair: Repair,
-    /// CMA-ES population size λ (`None`: the crate's default `4 + ⌊3 ln n⌋`).
+    /// CMA-ES population size λ, at least 4 (`None`: the crate's default `4 + ⌊3 ln n⌋`).
     #[serde(default)]
     pub population: Option<usize>,
 }
