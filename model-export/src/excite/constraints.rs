@@ -360,21 +360,7 @@ impl FourierFamily {
 
     /// The trajectory `c_p + scale·Z·x`.
     pub fn trajectory(&self, x: &[f64], scale: f64) -> ExcitationTrajectory {
-        let joints = self
-            .spaces
-            .iter()
-            .enumerate()
-            .map(|(j, s)| {
-                let xj = DVector::from_column_slice(&x[self.offsets[j]..self.offsets[j + 1]]);
-                let c = &s.particular + (&s.null * xj) * (scale * s.amplitude_rad);
-                JointFourier::from_packed(c.as_slice())
-            })
-            .collect();
-        ExcitationTrajectory {
-            period_s: self.period_s,
-            harmonics: self.harmonics,
-            joints,
-        }
+        self.trajectory_per_joint(x, &vec![scale; self.joint_count()])
     }
 
     /// The particular part `c_p` and direction part `Z·x` of joint `j` on the dense grid.
@@ -401,41 +387,95 @@ impl FourierFamily {
     }
 
     fn scale_on(&self, grid: &Grid, x: &[f64], cap: f64) -> f64 {
+        (0..self.joint_count()).fold(cap, |s, j| self.joint_scale_on(grid, x, j, s))
+    }
+
+    /// The largest scale `≤ cap` of joint `j`'s part `Z_j·x_j` alone that keeps joint `j` within
+    /// its limits on `grid` (0 when its particular solution breaks a limit).
+    fn joint_scale_on(&self, grid: &Grid, x: &[f64], j: usize, cap: f64) -> f64 {
         let mut s_max: f64 = cap;
-        for j in 0..self.joint_count() {
-            let l = &self.limits[j];
-            let (base, dir) = self.grid_parts(grid, x, j);
-            let bounds = [
-                (l.q_min_rad, l.q_max_rad),
-                (-l.qd_max_rad_s, l.qd_max_rad_s),
-                (-l.qdd_max_rad_s2, l.qdd_max_rad_s2),
-            ];
-            for ((b, d), (lo, hi)) in base.iter().zip(dir.iter()).zip(bounds) {
-                for (p, v) in b.iter().zip(d.iter()) {
-                    if *p > hi || *p < lo {
-                        return 0.0;
-                    }
-                    if *v > 0.0 {
-                        s_max = s_max.min((hi - p) / v);
-                    } else if *v < 0.0 {
-                        s_max = s_max.min((lo - p) / v);
-                    }
+        let l = &self.limits[j];
+        let (base, dir) = self.grid_parts(grid, x, j);
+        let bounds = [
+            (l.q_min_rad, l.q_max_rad),
+            (-l.qd_max_rad_s, l.qd_max_rad_s),
+            (-l.qdd_max_rad_s2, l.qdd_max_rad_s2),
+        ];
+        for ((b, d), (lo, hi)) in base.iter().zip(dir.iter()).zip(bounds) {
+            for (p, v) in b.iter().zip(d.iter()) {
+                if *p > hi || *p < lo {
+                    return 0.0;
+                }
+                if *v > 0.0 {
+                    s_max = s_max.min((hi - p) / v);
+                } else if *v < 0.0 {
+                    s_max = s_max.min((lo - p) / v);
                 }
             }
         }
         s_max.max(0.0)
     }
 
-    /// Margins of the trajectory `c_p + scale·Z·x` to every limit on the dense grid.
-    pub fn margins(&self, x: &[f64], scale: f64) -> Vec<ConstraintMargin> {
+    /// Per-joint repair into the limits: for every joint `j` the largest `s_j ≤ cap` such that
+    /// `c_p,j + s_j·Z_j·x_j` stays within joint `j`'s limits on the dense grid. The limits are
+    /// per joint and each joint's coefficients only move that joint, so the joints can be
+    /// scaled independently (unlike [`FourierFamily::feasible_scale`], where the tightest joint
+    /// shrinks every other joint too).
+    pub fn joint_scales(&self, x: &[f64], cap: f64) -> Vec<f64> {
+        (0..self.joint_count())
+            .map(|j| self.joint_scale_on(&self.grid, x, j, cap))
+            .collect()
+    }
+
+    /// [`FourierFamily::joint_scales`] on the coarser search grid.
+    pub fn search_joint_scales(&self, x: &[f64], cap: f64) -> Vec<f64> {
+        (0..self.joint_count())
+            .map(|j| self.joint_scale_on(&self.search_grid, x, j, cap))
+            .collect()
+    }
+
+    /// Per-joint scales of `x` rescaled onto the dense grid: each `scales[j]` lowered (never
+    /// raised) so that joint `j` stays within its limits on the dense grid.
+    pub fn dense_joint_scales(&self, x: &[f64], scales: &[f64]) -> Vec<f64> {
+        (0..self.joint_count())
+            .map(|j| self.joint_scale_on(&self.grid, x, j, scales[j]))
+            .collect()
+    }
+
+    /// The trajectory `c_p,j + scales[j]·Z_j·x_j` per joint.
+    pub fn trajectory_per_joint(&self, x: &[f64], scales: &[f64]) -> ExcitationTrajectory {
+        let joints = self
+            .spaces
+            .iter()
+            .enumerate()
+            .map(|(j, s)| {
+                let xj = DVector::from_column_slice(&x[self.offsets[j]..self.offsets[j + 1]]);
+                let c = &s.particular + (&s.null * xj) * (scales[j] * s.amplitude_rad);
+                JointFourier::from_packed(c.as_slice())
+            })
+            .collect();
+        ExcitationTrajectory {
+            period_s: self.period_s,
+            harmonics: self.harmonics,
+            joints,
+        }
+    }
+
+    /// Margins of the trajectory `c_p,j + scales[j]·Z_j·x_j` to every limit on the dense grid.
+    pub fn margins_per_joint(&self, x: &[f64], scales: &[f64]) -> Vec<ConstraintMargin> {
         let mut out = Vec::with_capacity(4 * self.joint_count());
-        for j in 0..self.joint_count() {
+        for (j, &scale) in scales.iter().enumerate().take(self.joint_count()) {
             let l = self.limits[j];
             let (base, dir) = self.grid_parts(&self.grid, x, j);
             let vals: Vec<DVector<f64>> = (0..3).map(|k| &base[k] + &dir[k] * scale).collect();
             out.extend(margins_of(j, &l, &vals[0], &vals[1], &vals[2]));
         }
         out
+    }
+
+    /// Margins of the trajectory `c_p + scale·Z·x` to every limit on the dense grid.
+    pub fn margins(&self, x: &[f64], scale: f64) -> Vec<ConstraintMargin> {
+        self.margins_per_joint(x, &vec![scale; self.joint_count()])
     }
 
     /// Margins of the particular solution `c_p` alone (the rest pose when it satisfies the point

@@ -26,9 +26,16 @@ pub trait ObservationModel {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, clap::ValueEnum)]
 #[serde(rename_all = "snake_case")]
 pub enum Criterion {
-    /// Condition number `σ_max / σ_min` of `W` (the paper's criterion). Minimised.
+    /// Condition number `σ_max / σ_min` of the unscaled `W` (the paper's criterion). Minimised.
+    /// Depends on the parameters' units: a column in N·m per (kg·m) (gravity, ~g) against one
+    /// in N·m per N·m (Coulomb friction, ~1) puts a floor of roughly `g` under it whatever the
+    /// trajectory.
     #[default]
     Condition,
+    /// Condition number of `W` with every column scaled to unit norm (`W D⁻¹`, `D` the column
+    /// norms): independent of the parameters' units and within `√p` of the best diagonal
+    /// scaling (van der Sluis). Minimised.
+    ScaledCondition,
     /// D-optimality: `log det(WᵀW / n_samples)`. Maximised (the optimiser minimises its negative).
     LogDet,
 }
@@ -42,6 +49,13 @@ pub struct ExcitationScore {
     pub log_det: f64,
     /// Smallest singular value of `W / sqrt(n_samples)`.
     pub sigma_min: f64,
+    /// Condition number of `W` with unit-norm columns (∞ when rank-deficient).
+    #[serde(default = "infinite")]
+    pub scaled_condition: f64,
+}
+
+fn infinite() -> f64 {
+    f64::INFINITY
 }
 
 impl ExcitationScore {
@@ -52,6 +66,13 @@ impl ExcitationScore {
             Criterion::Condition => {
                 if self.condition.is_finite() {
                     self.condition.ln()
+                } else {
+                    1e3
+                }
+            }
+            Criterion::ScaledCondition => {
+                if self.scaled_condition.is_finite() {
+                    self.scaled_condition.ln()
                 } else {
                     1e3
                 }
@@ -74,6 +95,9 @@ pub struct ObservationEvaluator<'m, M: ObservationModel + ?Sized> {
     samples: usize,
     rows: Vec<f64>,
     gram: DMatrix<f64>,
+    scaled: DMatrix<f64>,
+    want_plain: bool,
+    want_scaled: bool,
     q: Vec<f64>,
     qd: Vec<f64>,
     qdd: Vec<f64>,
@@ -90,10 +114,21 @@ impl<'m, M: ObservationModel + ?Sized> ObservationEvaluator<'m, M> {
             samples: samples.max(1),
             rows: vec![0.0; model.rows_per_sample() * p],
             gram: DMatrix::zeros(p, p),
+            scaled: DMatrix::zeros(p, p),
+            want_plain: true,
+            want_scaled: true,
             q: vec![0.0; n],
             qd: vec![0.0; n],
             qdd: vec![0.0; n],
         }
+    }
+
+    /// Computes only what `criterion` needs (the other fields of the score stay at their
+    /// rank-deficient values); by default both condition numbers and the log-det are computed.
+    pub fn only_for(mut self, criterion: Criterion) -> Self {
+        self.want_plain = criterion != Criterion::ScaledCondition;
+        self.want_scaled = criterion == Criterion::ScaledCondition;
+        self
     }
 
     /// Scores a trajectory through the eigenvalues of `WᵀW` (fast; accurate while the condition
@@ -125,26 +160,55 @@ impl<'m, M: ObservationModel + ?Sized> ObservationEvaluator<'m, M> {
             }
         }
         let n = self.samples as f64;
-        let eig = self.gram.clone().symmetric_eigenvalues();
-        let (mut lmin, mut lmax) = (f64::INFINITY, 0.0f64);
-        let mut log_det = 0.0;
-        for &l in eig.iter() {
-            lmin = lmin.min(l);
-            lmax = lmax.max(l);
-            log_det += (l / n).ln();
+        let mut out = ExcitationScore {
+            condition: f64::INFINITY,
+            log_det: f64::NEG_INFINITY,
+            sigma_min: 0.0,
+            scaled_condition: f64::INFINITY,
+        };
+        if self.want_plain {
+            let eig = self.gram.clone().symmetric_eigenvalues();
+            let (lmin, lmax) = extremes(eig.as_slice());
+            if lmin > lmax * 1e-28 {
+                out.condition = (lmax / lmin).sqrt();
+                out.log_det = eig.iter().map(|l| (l / n).ln()).sum();
+                out.sigma_min = (lmin / n).sqrt();
+            }
         }
-        if lmin.is_nan() || lmin <= lmax * 1e-28 || !lmin.is_finite() {
-            return ExcitationScore {
-                condition: f64::INFINITY,
-                log_det: f64::NEG_INFINITY,
-                sigma_min: 0.0,
-            };
+        if self.want_scaled {
+            // D⁻¹ WᵀW D⁻¹ with D = column norms: the Gram matrix of the unit-norm columns.
+            let d: Vec<f64> = (0..p).map(|a| self.gram[(a, a)].sqrt()).collect();
+            if d.iter().all(|&x| x > 0.0 && x.is_finite()) {
+                for a in 0..p {
+                    for b in 0..p {
+                        self.scaled[(a, b)] = self.gram[(a, b)] / (d[a] * d[b]);
+                    }
+                }
+                let eig = self.scaled.clone().symmetric_eigenvalues();
+                let (lmin, lmax) = extremes(eig.as_slice());
+                if lmin > lmax * 1e-28 {
+                    out.scaled_condition = (lmax / lmin).sqrt();
+                }
+            }
         }
-        ExcitationScore {
-            condition: (lmax / lmin).sqrt(),
-            log_det,
-            sigma_min: (lmin / n).sqrt(),
+        out
+    }
+}
+
+/// Smallest and largest of a set of eigenvalues (NaN maps to a rank-deficient result).
+fn extremes(eig: &[f64]) -> (f64, f64) {
+    let (mut lmin, mut lmax) = (f64::INFINITY, 0.0f64);
+    for &l in eig {
+        if l.is_nan() {
+            return (0.0, 1.0);
         }
+        lmin = lmin.min(l);
+        lmax = lmax.max(l);
+    }
+    if !lmin.is_finite() {
+        (0.0, 1.0)
+    } else {
+        (lmin, lmax)
     }
 }
 
@@ -182,4 +246,18 @@ pub fn condition_number(w: &DMatrix<f64>) -> f64 {
     let sv = w.clone().singular_values();
     let (mn, mx) = (sv.min(), sv.max());
     if mn > 0.0 { mx / mn } else { f64::INFINITY }
+}
+
+/// Condition number of a matrix after scaling every column to unit norm (see
+/// [`Criterion::ScaledCondition`]), from its singular values.
+pub fn scaled_condition_number(w: &DMatrix<f64>) -> f64 {
+    let mut w = w.clone();
+    for mut c in w.column_iter_mut() {
+        let n = c.norm();
+        if n == 0.0 || !n.is_finite() {
+            return f64::INFINITY;
+        }
+        c /= n;
+    }
+    condition_number(&w)
 }

@@ -14,7 +14,7 @@ use super::ExciteError;
 use super::constraints::{ConstraintMargin, FourierFamily, tightest};
 use super::objective::{
     Criterion, ExcitationScore, ObservationEvaluator, ObservationModel, condition_number,
-    observation_matrix,
+    observation_matrix, scaled_condition_number,
 };
 use super::trajectory::{
     DEFAULT_HARMONICS, DEFAULT_PERIOD_S, DEFAULT_RATE_HZ, ExcitationTrajectory,
@@ -29,6 +29,11 @@ use std::time::{Duration, Instant};
 
 /// Weight of the shrink penalty `ln(1/s)` added to the cost (cost is `ln cond` or `−log det`).
 pub const PENALTY_WEIGHT: f64 = 0.05;
+
+/// Default number of CMA-ES restarts.
+pub const DEFAULT_RESTARTS: usize = 4;
+/// Default objective evaluations per restart.
+pub const DEFAULT_EVALUATIONS_PER_RESTART: usize = 6000;
 
 /// Settings of an excitation design.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -56,6 +61,25 @@ pub struct ExcitationSettings {
     pub seed: u64,
     /// Optional wall-clock limit per restart.
     pub max_seconds_per_restart: Option<f64>,
+    /// How a decision vector is repaired into the limits (default: per joint).
+    #[serde(default)]
+    pub repair: Repair,
+    /// CMA-ES population size λ, at least 4 (`None`: the crate's default `4 + ⌊3 ln n⌋`).
+    #[serde(default)]
+    pub population: Option<usize>,
+}
+
+/// How a decision vector `x` is mapped into the limits before it is scored.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "snake_case")]
+pub enum Repair {
+    /// One scale `s ≤ 1` for all joints ([`FourierFamily::search_scale`]): the tightest joint
+    /// shrinks every other joint too.
+    Global,
+    /// One scale `s_j ≤ 1` per joint ([`FourierFamily::search_joint_scales`]): every joint is
+    /// shrunk only as far as its own limits require.
+    #[default]
+    PerJoint,
 }
 
 impl Default for ExcitationSettings {
@@ -67,11 +91,13 @@ impl Default for ExcitationSettings {
             check_factor: 10,
             objective_samples: 200,
             criterion: Criterion::Condition,
-            restarts: 4,
-            evaluations_per_restart: 6000,
+            restarts: DEFAULT_RESTARTS,
+            evaluations_per_restart: DEFAULT_EVALUATIONS_PER_RESTART,
             step_size: 0.5,
             seed: 1,
             max_seconds_per_restart: None,
+            repair: Repair::PerJoint,
+            population: None,
         }
     }
 }
@@ -123,8 +149,8 @@ fn reason_text(reasons: &[TerminationReason]) -> String {
         .join(",")
 }
 
-/// Scores a trajectory at the controller rate: condition number from the SVD of the full `W`,
-/// log-determinant and smallest singular value from `WᵀW`.
+/// Scores a trajectory at the controller rate: both condition numbers from the SVD of the full
+/// `W`, log-determinant and smallest singular value from `WᵀW`.
 pub fn final_score<M: ObservationModel + ?Sized>(
     model: &M,
     tr: &ExcitationTrajectory,
@@ -132,8 +158,18 @@ pub fn final_score<M: ObservationModel + ?Sized>(
 ) -> ExcitationScore {
     let samples = (tr.period_s * rate_hz).round().max(1.0) as usize;
     let mut s = ObservationEvaluator::new(model, samples).score(tr);
-    s.condition = condition_number(&observation_matrix(model, tr, rate_hz));
+    let w = observation_matrix(model, tr, rate_hz);
+    s.condition = condition_number(&w);
+    s.scaled_condition = scaled_condition_number(&w);
     s
+}
+
+/// Per-joint scales of `x` on the search grid for the chosen repair (capped at 1).
+fn search_scales(family: &FourierFamily, x: &[f64], repair: Repair) -> Vec<f64> {
+    match repair {
+        Repair::Global => vec![family.search_scale(x, 1.0); family.joint_count()],
+        Repair::PerJoint => family.search_joint_scales(x, 1.0),
+    }
 }
 
 /// Finds a feasible particular solution when the given one breaks a limit (phase 1).
@@ -209,8 +245,9 @@ pub fn design<M: ObservationModel + ?Sized>(
     let mut evaluations = 0usize;
     ensure_feasible_start(&mut family, settings, &mut evaluations)?;
     let dim = family.dimension();
+    let n = family.joint_count();
     let criterion = settings.criterion;
-    let mut best: Option<(f64, Vec<f64>, f64)> = None;
+    let mut best: Option<(f64, Vec<f64>, Vec<f64>)> = None;
     let mut restarts = Vec::new();
     for r in 0..settings.restarts.max(1) {
         let seed = restart_seed(settings.seed, r);
@@ -223,20 +260,25 @@ pub fn design<M: ObservationModel + ?Sized>(
             .collect();
         let count = Cell::new(0usize);
         let fam = &family;
-        let mut evaluator = ObservationEvaluator::new(model, settings.objective_samples);
+        let mut evaluator =
+            ObservationEvaluator::new(model, settings.objective_samples).only_for(criterion);
         let f = |x: &DVector<f64>| {
             count.set(count.get() + 1);
-            let s = fam.search_scale(x.as_slice(), 1.0);
-            if s <= 0.0 {
+            let scales = search_scales(fam, x.as_slice(), settings.repair);
+            if scales.iter().any(|&s| s <= 0.0) {
                 return 1e6;
             }
-            let tr = fam.trajectory(x.as_slice(), s);
-            evaluator.score(&tr).cost(criterion) + PENALTY_WEIGHT * (1.0 / s).ln()
+            let penalty = scales.iter().map(|s| (1.0 / s).ln()).sum::<f64>() / n as f64;
+            let tr = fam.trajectory_per_joint(x.as_slice(), &scales);
+            evaluator.score(&tr).cost(criterion) + PENALTY_WEIGHT * penalty
         };
         let mut options = CMAESOptions::new(mean, settings.step_size)
             .seed(seed)
             .max_function_evals(settings.evaluations_per_restart)
             .tol_fun(1e-9);
+        if let Some(lambda) = settings.population {
+            options = options.population_size(lambda.max(4));
+        }
         if let Some(secs) = settings.max_seconds_per_restart {
             options = options.max_time(Duration::from_secs_f64(secs));
         }
@@ -257,15 +299,16 @@ pub fn design<M: ObservationModel + ?Sized>(
         });
         if best.as_ref().is_none_or(|b| ind.value < b.0) {
             let x = ind.point.as_slice().to_vec();
-            // Final scale on the dense grid (at most a hair below the search grid's).
-            let s = family.feasible_scale(&x, family.search_scale(&x, 1.0));
+            // Final scales on the dense grid (at most a hair below the search grid's).
+            let s = search_scales(&family, &x, settings.repair);
+            let s = family.dense_joint_scales(&x, &s);
             best = Some((ind.value, x, s));
         }
     }
     let (_, x, s) =
         best.ok_or_else(|| ExciteError::Invalid("the optimiser returned no point".into()))?;
-    let trajectory = family.trajectory(&x, s);
-    let margins = family.margins(&x, s);
+    let trajectory = family.trajectory_per_joint(&x, &s);
+    let margins = family.margins_per_joint(&x, &s);
     let score = final_score(model, &trajectory, settings.rate_hz);
     if !score.condition.is_finite() {
         let t = tightest(&margins).expect("at least one joint");
@@ -288,13 +331,107 @@ pub fn design<M: ObservationModel + ?Sized>(
     })
 }
 
-/// A random feasible trajectory of the family (the baseline the design must beat): standard
-/// normal decision vector, scaled so that its tightest limit is just reached.
+/// A random feasible trajectory of the family (the baseline the design must beat): a
+/// standard-normal decision vector (the optimiser's parametrisation: rest-to-rest by
+/// construction), every joint scaled onto its own tightest limit (the optimiser's per-joint
+/// repair with no cap). A generous baseline: it uses every joint's limits as fully as a design.
 pub fn random_feasible(family: &FourierFamily, seed: u64) -> ExcitationTrajectory {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let x: Vec<f64> = (0..family.dimension())
         .map(|_| StandardNormal.sample(&mut rng))
         .collect();
-    let s = family.feasible_scale(&x, f64::INFINITY);
-    family.trajectory(&x, if s.is_finite() { s } else { 1.0 })
+    let s: Vec<f64> = family
+        .joint_scales(&x, f64::INFINITY)
+        .into_iter()
+        .map(|s| if s.is_finite() { s } else { 1.0 })
+        .collect();
+    family.trajectory_per_joint(&x, &s)
+}
+
+/// Seed of member `i` of a random baseline population with master seed `seed`.
+pub fn baseline_seed(seed: u64, i: usize) -> u64 {
+    restart_seed(seed ^ 0xBA5E_BA5E, i)
+}
+
+/// Default size of the random baseline population.
+pub const DEFAULT_BASELINE_COUNT: usize = 20;
+
+/// Scores of a seeded population of random feasible trajectories ([`random_feasible`] with
+/// seeds [`baseline_seed`]`(seed, 0..count)`), each scored at the controller rate like a design.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct RandomBaseline {
+    /// Master seed of the population.
+    pub seed: u64,
+    /// Seed of each member.
+    pub seeds: Vec<u64>,
+    /// Score of each member (same order as `seeds`).
+    pub scores: Vec<ExcitationScore>,
+}
+
+/// Median and best of one figure over a population.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct PopulationStats {
+    /// Median (mean of the two middle values for an even count).
+    pub median: f64,
+    /// Smallest value (the best draw: condition numbers are minimised).
+    pub best: f64,
+    /// Largest value.
+    pub worst: f64,
+}
+
+impl PopulationStats {
+    /// Statistics of `values` (at least one).
+    pub fn of(values: &[f64]) -> Self {
+        let mut v = values.to_vec();
+        v.sort_by(f64::total_cmp);
+        let m = v.len();
+        let median = if m % 2 == 1 {
+            v[m / 2]
+        } else {
+            0.5 * (v[m / 2 - 1] + v[m / 2])
+        };
+        Self {
+            median,
+            best: v[0],
+            worst: v[m - 1],
+        }
+    }
+}
+
+impl RandomBaseline {
+    /// Statistics of the unscaled condition number (the paper's).
+    pub fn condition(&self) -> PopulationStats {
+        PopulationStats::of(&self.scores.iter().map(|s| s.condition).collect::<Vec<_>>())
+    }
+
+    /// Statistics of the column-scaled condition number.
+    pub fn scaled_condition(&self) -> PopulationStats {
+        PopulationStats::of(
+            &self
+                .scores
+                .iter()
+                .map(|s| s.scaled_condition)
+                .collect::<Vec<_>>(),
+        )
+    }
+}
+
+/// Scores `count` (at least 1) seeded random feasible trajectories of `family` at `rate_hz`.
+pub fn random_baseline<M: ObservationModel + ?Sized>(
+    model: &M,
+    family: &FourierFamily,
+    count: usize,
+    seed: u64,
+    rate_hz: f64,
+) -> RandomBaseline {
+    let seeds: Vec<u64> = (0..count.max(1)).map(|i| baseline_seed(seed, i)).collect();
+    let scores = seeds
+        .iter()
+        .map(|&sd| final_score(model, &random_feasible(family, sd), rate_hz))
+        .collect();
+    RandomBaseline {
+        seed,
+        seeds,
+        scores,
+    }
 }

@@ -64,8 +64,8 @@ pub struct ExcitationFile {
     pub criterion: Criterion,
     /// Score at the controller rate.
     pub score: ExcitationScore,
-    /// Condition number of a random feasible trajectory of the same family (baseline), if
-    /// computed.
+    /// Median unscaled condition number of the random baseline population (seeded random
+    /// feasible trajectories of the same family, see `optimise::random_baseline`), if computed.
     pub random_condition: Option<f64>,
     /// Margins to every limit on the dense grid.
     pub margins: Vec<ConstraintMargin>,
