@@ -1,9 +1,19 @@
 //! SGEMM backends at the LSTM training shapes (B = 50, T = 100, E = H = 64): microseconds
-//! per call of `nn::gemm::sgemm` (`gemm` crate) and `nn::gemm::sgemm_mm` (`matrixmultiply`).
+//! per call of `nn::gemm::sgemm_gemm` (`gemm` crate) and `nn::gemm::sgemm_mm` (`matrixmultiply`),
+//! in thread CPU time (`/proc/thread-self/schedstat`, so a loaded machine does not skew
+//! the comparison; wall clock where that file is missing).
 //!
 //! `cargo run --release -p model-export --example gemm_shapes`
-use model_export::nn::gemm::{Op, sgemm, sgemm_mm};
+use model_export::nn::gemm::{Op, sgemm_gemm, sgemm_mm};
 use std::time::Instant;
+
+/// Nanoseconds this thread has run on a CPU, or wall-clock nanoseconds if unknown.
+fn cpu_ns(wall: Instant) -> f64 {
+    std::fs::read_to_string("/proc/thread-self/schedstat")
+        .ok()
+        .and_then(|s| s.split_whitespace().next()?.parse::<f64>().ok())
+        .unwrap_or_else(|| wall.elapsed().as_nanos() as f64)
+}
 
 type Gemm = fn(usize, usize, usize, f32, &[f32], Op, &[f32], Op, f32, &mut [f32]);
 
@@ -14,11 +24,12 @@ fn time(f: Gemm, m: usize, k: usize, n: usize, ta: Op, tb: Op, beta: f32) -> f64
     let reps = (2e8 / (m * k * n) as f64).clamp(3.0, 20000.0) as usize;
     let mut best = f64::INFINITY;
     for _ in 0..5 {
-        let t0 = Instant::now();
+        let wall = Instant::now();
+        let t0 = cpu_ns(wall);
         for _ in 0..reps {
             f(m, k, n, 1.0, &a, ta, &b, tb, beta, &mut c);
         }
-        best = best.min(t0.elapsed().as_secs_f64() / reps as f64);
+        best = best.min((cpu_ns(wall) - t0) * 1e-9 / reps as f64);
     }
     std::hint::black_box(&c);
     1e6 * best
@@ -53,7 +64,7 @@ fn main() {
     println!("|---|---|---:|---:|---:|---:|");
     for (what, m, k, n, ta, tb, beta) in shapes {
         let flop = 2.0 * (m * k * n) as f64;
-        let g = time(sgemm, m, k, n, ta, tb, beta);
+        let g = time(sgemm_gemm, m, k, n, ta, tb, beta);
         let mm = time(sgemm_mm, m, k, n, ta, tb, beta);
         println!(
             "| {m}×{k}×{n} | {what} | {g:.1} | {:.0} | {mm:.1} | {:.0} |",

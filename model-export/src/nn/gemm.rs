@@ -1,9 +1,12 @@
 //! The one place with `unsafe` in model-export: safe, bounds-checked wrappers around two
 //! SGEMM crates for row-major matrices, each tested against a plain loop.
 //!
-//! [`sgemm`] uses the `gemm` crate (run-time dispatch up to AVX-512; measured fastest at
-//! every LSTM training shape, see `examples/gemm_shapes.rs`); [`sgemm_mm`] uses
-//! `matrixmultiply` and is kept as the comparison.
+//! [`sgemm`] picks by size, as measured at the LSTM training shapes
+//! (`examples/gemm_shapes.rs`, thread CPU time): the `gemm` crate (run-time dispatch up to
+//! AVX-512) for the small per-step products (`[50,64]×[64,256]`: ~25-30 against ~20-23
+//! GFLOP/s), `matrixmultiply` for the large time-batched ones (`[5000,64]×[64,256]` and the
+//! weight gradients: ~60 against ~30 GFLOP/s). [`sgemm_gemm`] and [`sgemm_mm`] are the two
+//! backends.
 #![allow(unsafe_code)]
 
 /// How an operand is read: as stored, or transposed.
@@ -22,6 +25,27 @@ pub enum Op {
 /// before any unsafe access).
 #[allow(clippy::too_many_arguments)]
 pub fn sgemm(
+    m: usize,
+    k: usize,
+    n: usize,
+    alpha: f32,
+    a: &[f32],
+    ta: Op,
+    b: &[f32],
+    tb: Op,
+    beta: f32,
+    c: &mut [f32],
+) {
+    if m * k * n >= 1 << 21 {
+        sgemm_mm(m, k, n, alpha, a, ta, b, tb, beta, c)
+    } else {
+        sgemm_gemm(m, k, n, alpha, a, ta, b, tb, beta, c)
+    }
+}
+
+/// [`sgemm`] on the `gemm` crate (same contract).
+#[allow(clippy::too_many_arguments)]
+pub fn sgemm_gemm(
     m: usize,
     k: usize,
     n: usize,
@@ -139,6 +163,7 @@ mod tests {
     #[test]
     fn matches_a_plain_loop_for_every_transpose() {
         check(sgemm);
+        check(sgemm_gemm);
         check(sgemm_mm);
     }
 

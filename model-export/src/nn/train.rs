@@ -307,15 +307,28 @@ pub fn train(
     Ok((m, h))
 }
 
-/// Wall-clock seconds of `epochs` training epochs (no validation) over `train`, for the
-/// benchmark: the same windows, batches, loss, clipping and optimiser as [`train`].
+/// CPU seconds (user + system) this process has used, from `/proc/self/stat` (10 ms
+/// ticks), or `None` where that file is missing. Benchmarks on a loaded machine report it
+/// beside the wall clock.
+pub fn process_cpu_seconds() -> Option<f64> {
+    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
+    // Fields after the parenthesised command name: state is field 3, utime 14, stime 15.
+    let rest = &stat[stat.rfind(')')? + 2..];
+    let f: Vec<&str> = rest.split_whitespace().collect();
+    let ticks: f64 = f.get(11)?.parse::<f64>().ok()? + f.get(12)?.parse::<f64>().ok()?;
+    Some(ticks / 100.0)
+}
+
+/// Wall-clock and process CPU seconds (see [`process_cpu_seconds`]; NaN if unknown) of
+/// each of `epochs` training epochs (no validation) over `train`, for the benchmark: the
+/// same windows, batches, loss, clipping and optimiser as [`train`].
 pub fn time_epochs(
     init: &LstmModel,
     train: &[&Sequence],
     cfg: &TrainConfig,
     lr: f64,
     epochs: usize,
-) -> Result<(usize, Vec<f64>)> {
+) -> Result<(usize, Vec<(f64, f64)>)> {
     let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed);
     let mut net = FusedNet::from_model(init, cfg.threads);
     let adam = Adam::new(lr);
@@ -323,8 +336,13 @@ pub fn time_epochs(
     let mut times = Vec::new();
     for _ in 0..epochs {
         let t0 = std::time::Instant::now();
+        let c0 = process_cpu_seconds();
         epoch(&mut net, &adam, &w, cfg, &mut rng);
-        times.push(t0.elapsed().as_secs_f64());
+        let cpu = match (c0, process_cpu_seconds()) {
+            (Some(a), Some(b)) => b - a,
+            _ => f64::NAN,
+        };
+        times.push((t0.elapsed().as_secs_f64(), cpu));
     }
     Ok((w.count, times))
 }
