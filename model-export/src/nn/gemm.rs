@@ -1,5 +1,12 @@
-//! The one place with `unsafe` in model-export: a safe, bounds-checked wrapper around
-//! `matrixmultiply::sgemm` for row-major matrices, tested against a plain loop.
+//! The one place with `unsafe` in model-export: safe, bounds-checked wrappers around two
+//! SGEMM crates for row-major matrices, each tested against a plain loop.
+//!
+//! [`sgemm`] picks by size, as measured at the LSTM training shapes
+//! (`examples/gemm_shapes.rs`, thread CPU time): the `gemm` crate (run-time dispatch up to
+//! AVX-512) for the small per-step products (`[50,64]×[64,256]`: ~25-30 against ~20-23
+//! GFLOP/s), `matrixmultiply` for the large time-batched ones (`[5000,64]×[64,256]` and the
+//! weight gradients: ~60 against ~30 GFLOP/s). [`sgemm_gemm`] and [`sgemm_mm`] are the two
+//! backends.
 #![allow(unsafe_code)]
 
 /// How an operand is read: as stored, or transposed.
@@ -18,6 +25,88 @@ pub enum Op {
 /// before any unsafe access).
 #[allow(clippy::too_many_arguments)]
 pub fn sgemm(
+    m: usize,
+    k: usize,
+    n: usize,
+    alpha: f32,
+    a: &[f32],
+    ta: Op,
+    b: &[f32],
+    tb: Op,
+    beta: f32,
+    c: &mut [f32],
+) {
+    if m * k * n >= 1 << 21 {
+        sgemm_mm(m, k, n, alpha, a, ta, b, tb, beta, c)
+    } else {
+        sgemm_gemm(m, k, n, alpha, a, ta, b, tb, beta, c)
+    }
+}
+
+/// [`sgemm`] on the `gemm` crate (same contract).
+#[allow(clippy::too_many_arguments)]
+pub fn sgemm_gemm(
+    m: usize,
+    k: usize,
+    n: usize,
+    alpha: f32,
+    a: &[f32],
+    ta: Op,
+    b: &[f32],
+    tb: Op,
+    beta: f32,
+    c: &mut [f32],
+) {
+    assert!(
+        a.len() >= m * k && b.len() >= k * n && c.len() >= m * n,
+        "sgemm: operand too short"
+    );
+    if m == 0 || n == 0 {
+        return;
+    }
+    if k == 0 {
+        c[..m * n].iter_mut().for_each(|x| *x *= beta);
+        return;
+    }
+    let (rsa, csa) = match ta {
+        Op::N => (k as isize, 1),
+        Op::T => (1, m as isize),
+    };
+    let (rsb, csb) = match tb {
+        Op::N => (n as isize, 1),
+        Op::T => (1, k as isize),
+    };
+    // SAFETY: as in `sgemm_mm`: the asserted lengths cover every addressed element and
+    // `c` is exclusively borrowed. `gemm` computes dst = alpha·dst + beta·lhs·rhs (its
+    // alpha/beta are swapped w.r.t. BLAS); `read_dst = false` ignores dst's old contents.
+    unsafe {
+        gemm::gemm(
+            m,
+            n,
+            k,
+            c.as_mut_ptr(),
+            1,
+            n as isize,
+            beta != 0.0,
+            a.as_ptr(),
+            csa,
+            rsa,
+            b.as_ptr(),
+            csb,
+            rsb,
+            beta,
+            alpha,
+            false,
+            false,
+            false,
+            gemm::Parallelism::None,
+        )
+    }
+}
+
+/// [`sgemm`] on `matrixmultiply` (same contract).
+#[allow(clippy::too_many_arguments)]
+pub fn sgemm_mm(
     m: usize,
     k: usize,
     n: usize,
@@ -73,6 +162,14 @@ mod tests {
 
     #[test]
     fn matches_a_plain_loop_for_every_transpose() {
+        check(sgemm);
+        check(sgemm_gemm);
+        check(sgemm_mm);
+    }
+
+    type Gemm = fn(usize, usize, usize, f32, &[f32], Op, &[f32], Op, f32, &mut [f32]);
+
+    fn check(f: Gemm) {
         let (m, k, n) = (5, 7, 3);
         let a: Vec<f32> = (0..m * k).map(|i| (i as f32 * 0.37).sin()).collect();
         let b: Vec<f32> = (0..k * n).map(|i| (i as f32 * 0.11).cos()).collect();
@@ -93,7 +190,7 @@ mod tests {
                     }
                 };
                 let mut c = vec![1.0f32; m * n];
-                sgemm(m, k, n, 2.0, &a, ta, &b, tb, 0.5, &mut c);
+                f(m, k, n, 2.0, &a, ta, &b, tb, 0.5, &mut c);
                 for i in 0..m {
                     for j in 0..n {
                         let want: f32 =

@@ -3,6 +3,7 @@
 pub mod data;
 pub mod eval;
 pub mod fused;
+pub mod fused_net;
 pub mod gemm;
 pub mod io;
 pub mod model;

@@ -1,15 +1,15 @@
-//! Training with candle: seeded initialisation, windows of a contiguous training block
-//! with a burn-in prefix, Adam, RMS loss, gradient clipping, early stopping.
+//! Training: seeded initialisation, windows of a contiguous training block with a burn-in
+//! prefix, Adam, RMS loss, gradient clipping, early stopping, on the fused network kernel
+//! of [`super::fused_net`] (checked against candle's autograd in its tests).
 //!
 //! **Streaming robustness.** Each training window starts from the zero state, but a drive
 //! runs one unbroken stream. Every window is therefore preceded by `burn_in` steps that
 //! the network sees but the loss ignores, so it learns to predict from a state that has
 //! forgotten its zero start; evaluation streams the firmware step over whole sequences.
 use super::data::{Sequence, mean_std};
-use super::model::{LstmModel, Net};
+use super::fused_net::{Adam, FusedNet, WindowSet};
+use super::model::LstmModel;
 use anyhow::{Result, bail};
-use candle_core::{Device, Tensor};
-use candle_nn::{AdamW, Optimizer, ParamsAdamW};
 use firmware::lstm::LstmDims;
 use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
@@ -50,6 +50,9 @@ pub struct TrainConfig {
     pub seed: u64,
     /// Show a progress bar.
     pub progress: bool,
+    /// Threads for the shards of a batch (results do not depend on it: the shards are
+    /// fixed, see [`super::fused_net`]).
+    pub threads: usize,
 }
 
 impl Default for TrainConfig {
@@ -69,6 +72,7 @@ impl Default for TrainConfig {
             test_fraction: 0.15,
             seed: 1,
             progress: true,
+            threads: 1,
         }
     }
 }
@@ -123,75 +127,47 @@ fn windows(m: &LstmModel, seqs: &[&Sequence], cfg: &TrainConfig, phase: usize) -
     w
 }
 
-fn batch_loss(
-    net: &Net,
-    w: &Windows,
-    idx: &[usize],
-    cfg: &TrainConfig,
-    dev: &Device,
-) -> Result<Tensor> {
-    let (i, o) = (net.dims.input, net.dims.output);
-    let len = cfg.burn_in + cfg.window;
-    let mut xb = Vec::with_capacity(idx.len() * len * i);
-    let mut yb = Vec::with_capacity(idx.len() * cfg.window * o);
-    for &k in idx {
-        xb.extend_from_slice(&w.x[k * len * i..][..len * i]);
-        yb.extend_from_slice(&w.y[k * cfg.window * o..][..cfg.window * o]);
+impl Windows {
+    fn set(&self, cfg: &TrainConfig) -> WindowSet<'_> {
+        WindowSet {
+            x: &self.x,
+            y: &self.y,
+            len: cfg.burn_in + cfg.window,
+            burn_in: cfg.burn_in,
+        }
     }
-    let x = Tensor::from_vec(xb, (idx.len(), len, i), dev)?;
-    let y = Tensor::from_vec(yb, (idx.len(), cfg.window, o), dev)?;
-    let pred = net.forward(&x)?.narrow(1, cfg.burn_in, cfg.window)?;
-    Ok((pred - y)?.sqr()?.mean_all()?.sqrt()?)
 }
 
-fn eval_loss(net: &Net, w: &Windows, cfg: &TrainConfig, dev: &Device) -> Result<f64> {
+fn eval_loss(net: &mut FusedNet, w: &Windows, cfg: &TrainConfig) -> f64 {
     let idx: Vec<usize> = (0..w.count).collect();
+    let set = w.set(cfg);
     let mut sq = 0.0;
     for chunk in idx.chunks(cfg.batch.max(1)) {
-        let l = batch_loss(net, w, chunk, cfg, dev)?.to_scalar::<f32>()? as f64;
+        let l = net.loss(&set, chunk);
         sq += l * l * chunk.len() as f64;
     }
-    Ok((sq / w.count.max(1) as f64).sqrt())
+    (sq / w.count.max(1) as f64).sqrt()
 }
 
 /// One epoch over shuffled windows; returns the mean training loss.
 fn epoch(
-    net: &Net,
-    opt: &mut AdamW,
+    net: &mut FusedNet,
+    adam: &Adam,
     w: &Windows,
     cfg: &TrainConfig,
     rng: &mut ChaCha8Rng,
-    dev: &Device,
-) -> Result<f64> {
+) -> f64 {
     let mut idx: Vec<usize> = (0..w.count).collect();
     idx.shuffle(rng);
+    let set = w.set(cfg);
     let mut total = 0.0;
     let mut n = 0;
     for chunk in idx.chunks(cfg.batch.max(1)) {
-        let loss = batch_loss(net, w, chunk, cfg, dev)?;
-        let mut grads = loss.backward()?;
-        if cfg.clip_norm > 0.0 {
-            let mut sq = 0.0f64;
-            for v in &net.vars {
-                if let Some(g) = grads.get(v.as_tensor()) {
-                    sq += g.sqr()?.sum_all()?.to_scalar::<f32>()? as f64;
-                }
-            }
-            let norm = sq.sqrt();
-            if norm > cfg.clip_norm {
-                let scale = cfg.clip_norm / norm;
-                for v in &net.vars {
-                    if let Some(g) = grads.remove(v.as_tensor()) {
-                        grads.insert(v.as_tensor(), (g * scale)?);
-                    }
-                }
-            }
-        }
-        opt.step(&grads)?;
-        total += loss.to_scalar::<f32>()? as f64;
+        total += net.loss_and_grad(&set, chunk);
+        net.step(adam, cfg.clip_norm);
         n += 1;
     }
-    Ok(total / n.max(1) as f64)
+    total / n.max(1) as f64
 }
 
 /// A fresh model for `train` with normalisation from the training block only.
@@ -229,17 +205,9 @@ fn run(
     epochs: usize,
     show: bool,
 ) -> Result<(LstmModel, History)> {
-    let dev = Device::Cpu;
     let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed ^ 0x5eed);
-    let net = Net::from_model(init, &dev)?;
-    let mut opt = AdamW::new(
-        net.vars.clone(),
-        ParamsAdamW {
-            lr,
-            weight_decay: 0.0,
-            ..Default::default()
-        },
-    )?;
+    let mut net = FusedNet::from_model(init, cfg.threads);
+    let adam = Adam::new(lr);
     let val_w = windows(init, val, cfg, 0);
     if val_w.count == 0 {
         bail!(
@@ -271,13 +239,13 @@ fn run(
                 cfg.burn_in + cfg.window
             );
         }
-        let tl = epoch(&net, &mut opt, &w, cfg, &mut rng, &dev)?;
-        let vl = eval_loss(&net, &val_w, cfg, &dev)?;
+        let tl = epoch(&mut net, &adam, &w, cfg, &mut rng);
+        let vl = eval_loss(&mut net, &val_w, cfg);
         hist.train.push(tl);
         hist.val.push(vl);
         if vl < best.0 {
             best.0 = vl;
-            net.store(&mut best.1)?;
+            net.store(&mut best.1);
             hist.best_epoch = ep;
         }
         bar.set_message(format!(
@@ -339,32 +307,42 @@ pub fn train(
     Ok((m, h))
 }
 
-/// Wall-clock seconds of `epochs` training epochs (no validation) over `train`, for the
-/// benchmark: the same windows, batches, loss, clipping and optimiser as [`train`].
+/// CPU seconds (user + system) this process has used, from `/proc/self/stat` (10 ms
+/// ticks), or `None` where that file is missing. Benchmarks on a loaded machine report it
+/// beside the wall clock.
+pub fn process_cpu_seconds() -> Option<f64> {
+    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
+    // Fields after the parenthesised command name: state is field 3, utime 14, stime 15.
+    let rest = &stat[stat.rfind(')')? + 2..];
+    let f: Vec<&str> = rest.split_whitespace().collect();
+    let ticks: f64 = f.get(11)?.parse::<f64>().ok()? + f.get(12)?.parse::<f64>().ok()?;
+    Some(ticks / 100.0)
+}
+
+/// Wall-clock and process CPU seconds (see [`process_cpu_seconds`]; NaN if unknown) of
+/// each of `epochs` training epochs (no validation) over `train`, for the benchmark: the
+/// same windows, batches, loss, clipping and optimiser as [`train`].
 pub fn time_epochs(
     init: &LstmModel,
     train: &[&Sequence],
     cfg: &TrainConfig,
     lr: f64,
     epochs: usize,
-) -> Result<(usize, Vec<f64>)> {
-    let dev = Device::Cpu;
+) -> Result<(usize, Vec<(f64, f64)>)> {
     let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed);
-    let net = Net::from_model(init, &dev)?;
-    let mut opt = AdamW::new(
-        net.vars.clone(),
-        ParamsAdamW {
-            lr,
-            weight_decay: 0.0,
-            ..Default::default()
-        },
-    )?;
+    let mut net = FusedNet::from_model(init, cfg.threads);
+    let adam = Adam::new(lr);
     let w = windows(init, train, cfg, 0);
     let mut times = Vec::new();
     for _ in 0..epochs {
         let t0 = std::time::Instant::now();
-        epoch(&net, &mut opt, &w, cfg, &mut rng, &dev)?;
-        times.push(t0.elapsed().as_secs_f64());
+        let c0 = process_cpu_seconds();
+        epoch(&mut net, &adam, &w, cfg, &mut rng);
+        let cpu = match (c0, process_cpu_seconds()) {
+            (Some(a), Some(b)) => b - a,
+            _ => f64::NAN,
+        };
+        times.push((t0.elapsed().as_secs_f64(), cpu));
     }
     Ok((w.count, times))
 }
