@@ -47,6 +47,8 @@ struct Variant {
     test_periods: usize,
     /// Seeds of the extra LSTM training logs (seeded random trajectories).
     lstm_log_seeds: std::ops::Range<u64>,
+    /// Seeds of the held-out validation logs (early stopping).
+    validation_log_seeds: std::ops::Range<u64>,
     lstm_log_periods: usize,
     epochs: usize,
     patience: usize,
@@ -58,10 +60,11 @@ const FULL: Variant = Variant {
     excite_evaluations: 6000,
     identification_periods: 6,
     test_periods: 3,
-    lstm_log_seeds: 101..111,
+    lstm_log_seeds: 101..121,
+    validation_log_seeds: 201..203,
     lstm_log_periods: 3,
-    epochs: 150,
-    patience: 15,
+    epochs: 60,
+    patience: 10,
 };
 
 const FAST: Variant = Variant {
@@ -71,6 +74,7 @@ const FAST: Variant = Variant {
     identification_periods: 2,
     test_periods: 1,
     lstm_log_seeds: 101..103,
+    validation_log_seeds: 201..202,
     lstm_log_periods: 1,
     epochs: 2,
     patience: 2,
@@ -305,7 +309,8 @@ pub fn demo(a: &DemoArgs) -> Result<()> {
     )?;
     sim(&mut pl, "test", traj("test.json"), v.test_periods, 11)?;
     let mut lstm_logs = vec![s("train")];
-    for seed in v.lstm_log_seeds.clone() {
+    let mut validation_logs = Vec::new();
+    for seed in v.lstm_log_seeds.clone().chain(v.validation_log_seeds.clone()) {
         let name = format!("random{seed}");
         let t = vec![
             s("--seeded-trajectory"),
@@ -314,7 +319,11 @@ pub fn demo(a: &DemoArgs) -> Result<()> {
             s("4,5,6"),
         ];
         sim(&mut pl, &name, t, v.lstm_log_periods, seed)?;
-        lstm_logs.push(name);
+        if v.validation_log_seeds.contains(&seed) {
+            validation_logs.push(name);
+        } else {
+            lstm_logs.push(name);
+        }
     }
 
     // 3. Identification on the training run, validated on the test run.
@@ -338,7 +347,8 @@ pub fn demo(a: &DemoArgs) -> Result<()> {
 
     // 4. Compensation datasets: every sample as logged, with the model's torque.
     let data = out.join("data");
-    for name in lstm_logs.iter().chain(std::iter::once(&s("test"))) {
+    let test = [s("test")];
+    for name in lstm_logs.iter().chain(&validation_logs).chain(&test) {
         let mut args = vec![
             s("torque"),
             s("--robot"),
@@ -359,61 +369,73 @@ pub fn demo(a: &DemoArgs) -> Result<()> {
         pl.stage(&format!("dataset {name}"), &args)?;
     }
 
-    // 5. LSTM training, the paper's configuration and preset.
+    // 5-6. LSTM training (the paper's configuration) for the `paper` preset and the
+    //      `feedforward` preset, and evaluation on the whole test run, streamed through
+    //      the firmware f32 step.
     let figures = out.join("figures");
-    let lstm = model_dir.join("lstm.safetensors");
-    let train_data: Vec<String> = lstm_logs
-        .iter()
-        .map(|n| p(&data.join(format!("{n}.csv"))))
-        .collect();
-    pl.stage(
-        "train",
-        &[
-            s("train"),
-            s("--data"),
-            train_data.join(","),
-            s("--preset"),
-            s("paper"),
-            s("--joints"),
-            s("4,5,6"),
-            s("--epochs"),
-            v.epochs.to_string(),
-            s("--patience"),
-            v.patience.to_string(),
-            s("--lr"),
-            s(DEMO_LR),
-            s("--test-fraction"),
-            s("0.05"),
-            s("--out"),
-            p(&lstm),
-            s("--loss-plot"),
-            p(&figures.join("fig10_loss.svg")),
-            s("--report"),
-            p(&model_dir.join("train.json")),
-            s("--quiet"),
-        ],
-    )?;
-
-    // 6. Evaluation on the whole test run, streamed through the firmware f32 step.
+    let csv_list = |names: &[String]| -> String {
+        names
+            .iter()
+            .map(|n| p(&data.join(format!("{n}.csv"))))
+            .collect::<Vec<_>>()
+            .join(",")
+    };
     let test_data = data.join("test.csv");
-    pl.stage(
-        "evaluate",
-        &[
+    for preset in ["paper", "feedforward"] {
+        let lstm = model_dir.join(format!("lstm_{preset}.safetensors"));
+        let loss_plot = if preset == "paper" {
+            figures.join("fig10_loss.svg")
+        } else {
+            figures.join("loss_feedforward.svg")
+        };
+        pl.stage(
+            &format!("train {preset}"),
+            &[
+                s("train"),
+                s("--data"),
+                csv_list(&lstm_logs),
+                s("--validation-data"),
+                csv_list(&validation_logs),
+                s("--preset"),
+                s(preset),
+                s("--joints"),
+                s("4,5,6"),
+                s("--epochs"),
+                v.epochs.to_string(),
+                s("--patience"),
+                v.patience.to_string(),
+                s("--lr"),
+                s(DEMO_LR),
+                s("--test-fraction"),
+                s("0.05"),
+                s("--out"),
+                p(&lstm),
+                s("--loss-plot"),
+                p(&loss_plot),
+                s("--report"),
+                p(&model_dir.join(format!("train_{preset}.json"))),
+                s("--quiet"),
+            ],
+        )?;
+        let mut args = vec![
             s("evaluate"),
             s("--model"),
             p(&lstm),
             s("--data"),
             p(&test_data),
             s("--preset"),
-            s("paper"),
+            s(preset),
             s("--joints"),
             s("4,5,6"),
             s("--report"),
-            p(&model_dir.join("evaluate.json")),
-            s("--figures"),
-            p(&figures),
-        ],
-    )?;
+            p(&model_dir.join(format!("evaluate_{preset}.json"))),
+        ];
+        if preset == "paper" {
+            args.extend([s("--figures"), p(&figures)]);
+        }
+        pl.stage(&format!("evaluate {preset}"), &args)?;
+    }
+    let lstm = model_dir.join("lstm_paper.safetensors");
 
     // 7. Quantisation and export (int16, the firmware default), with the accuracy of
     //    every precision on the test run.
@@ -449,7 +471,30 @@ pub fn demo(a: &DemoArgs) -> Result<()> {
         println!("installed {} as {}", fw_model.display(), dst.display());
     }
 
-    // 8. Firmware build for the board and the size / cycle budget run.
+    // 8. Closed loop: the wrist in the loop on the true plant, the firmware's drives
+    //    and compensators, along the test trajectory.
+    let sil = out.join("sil");
+    std::fs::create_dir_all(&sil).with_context(|| format!("creating {}", sil.display()))?;
+    pl.stage(
+        "closed loop",
+        &[
+            s("sil"),
+            s("--model"),
+            p(&identified),
+            s("--lstm"),
+            p(&lstm),
+            s("--trajectory"),
+            p(&excite.join("test.json")),
+            s("--periods"),
+            v.test_periods.to_string(),
+            s("--json"),
+            p(&sil.join("sil.json")),
+            s("--markdown"),
+            p(&sil.join("sil.md")),
+        ],
+    )?;
+
+    // 9. Firmware build for the board and the size / cycle budget run.
     let fw_model_abs = std::fs::canonicalize(&fw_model)
         .with_context(|| format!("resolving {}", fw_model.display()))?;
     let budget = if a.no_firmware {
@@ -469,6 +514,8 @@ pub fn demo(a: &DemoArgs) -> Result<()> {
                 "board",
                 "--features",
                 "board",
+                "--target-dir",
+                "target/demo",
             ],
             &fw_model_abs,
         )?;
@@ -496,7 +543,7 @@ pub fn demo(a: &DemoArgs) -> Result<()> {
         Some(markdown)
     };
 
-    // 9. Report.
+    // 10. Report.
     let total_s = t_start.elapsed().as_secs_f64();
     let report = Report::gather(out, &v, &pl.records, budget.as_ref(), total_s)?;
     crate::nn::write_atomic(
@@ -531,8 +578,12 @@ impl Report {
         let excite_train = read_json(&out.join("excite/train.json"))?;
         let excite_test = read_json(&out.join("excite/test.json"))?;
         let identified = read_json(&out.join("model/identified.json"))?;
-        let train = read_json(&out.join("model/train.json"))?;
-        let evaluate = read_json(&out.join("model/evaluate.json"))?;
+        let train = read_json(&out.join("model/train_paper.json"))?;
+        let evaluate = read_json(&out.join("model/evaluate_paper.json"))?;
+        let evaluate_ff = read_json(&out.join("model/evaluate_feedforward.json"))?;
+        let sil_md = std::fs::read_to_string(out.join("sil/sil.md"))
+            .with_context(|| format!("reading {}", out.join("sil/sil.md").display()))?;
+        let sil_json = read_json(&out.join("sil/sil.json"))?;
         let accuracy = read_json(&out.join("model/accuracy.json"))?;
         let rows = evaluate["data"][0]["outputs"]
             .as_array()
@@ -655,6 +706,29 @@ impl Report {
 
         let _ = writeln!(
             md,
+            "The `feedforward` preset (model torque, position and velocity of the reference, \
+             what a drive knows before the tick, -> the residual τ - τ_model at the same step) on \
+             the same test run:\n"
+        );
+        let _ = writeln!(md, "| joint | uncompensated | compensated | reduction % |\n|---|---:|---:|---:|");
+        let mut feedforward = Vec::new();
+        for (k, r) in evaluate_ff["data"][0]["outputs"].as_array().into_iter().flatten().enumerate() {
+            let f = |key: &str| r[key].as_f64().unwrap_or(f64::NAN);
+            let _ = writeln!(
+                md,
+                "| {} | {:.3} | {:.3} | {:.1} |",
+                k + 4,
+                f("rms_before"),
+                f("rms_after"),
+                f("reduction_pct")
+            );
+            feedforward.push(json!({"joint": k + 4, "uncompensated_nm": f("rms_before"),
+                "compensated_nm": f("rms_after"), "reduction_pct": f("reduction_pct")}));
+        }
+        md.push('\n');
+
+        let _ = writeln!(
+            md,
             "## Quantised networks (the firmware's kernels, streamed on the test run)\n"
         );
         let _ = writeln!(
@@ -672,6 +746,15 @@ impl Report {
                 c / f
             );
         }
+
+        let _ = writeln!(
+            md,
+            "\n## Closed loop (software in the loop)\n\nThe wrist on the true plant (motor, gear, \
+             friction, ripple, sensors) driven through PWM duties by the firmware's current loop, \
+             cascade and compensator, one instance per joint, states exchanged with one tick of \
+             bus latency, along the test trajectory; feedforward from the `paper` network.\n"
+        );
+        md.push_str(&sil_md);
 
         let _ = writeln!(md, "\n## Firmware size and cycle budget\n");
         match budget {
@@ -735,6 +818,8 @@ impl Report {
             "excitation": {"train": excite_train["score"], "test": excite_test["score"]},
             "identification": {"condition_number": identified["condition_number"], "errors": identified["errors"]},
             "table2": table2,
+            "feedforward_preset": feedforward,
+            "closed_loop": sil_json,
             "training": {"lr": train["lr"], "best_epoch": train["best_epoch"], "epochs": train["epochs"],
                           "train_loss": train["train_loss"], "val_loss": train["val_loss"]},
             "evaluation": evaluate,

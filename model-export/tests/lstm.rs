@@ -285,12 +285,18 @@ fn presets_align_inputs_and_targets() {
     let p = FeatureSpec::paper(&[4]).sequence(&table).unwrap();
     assert_eq!(p.len(), 4);
     assert_eq!(p.inputs[0], vec![30.0, 20.0, 0.0]);
-    assert_eq!(p.targets[0], vec![21.0]);
-    assert_eq!(p.model_only[0], vec![31.0]);
-    assert_eq!(p.persistence[0], vec![Some(20.0)]);
+    // The next-step measured torque (21) as the increment over the measured torque
+    // given (20); the model's prediction (31) and persistence (20) in the same terms.
+    assert_eq!(p.targets[0], vec![1.0]);
+    assert_eq!(p.offset[0], vec![20.0]);
+    assert_eq!(p.model_only[0], vec![11.0]);
+    assert_eq!(p.persistence[0], vec![Some(0.0)]);
     let f = FeatureSpec::feedforward(&[4]).sequence(&table).unwrap();
     assert_eq!(f.len(), 5);
     assert_eq!(f.inputs[2], vec![32.0, 2.0, 12.0]);
     assert_eq!(f.targets[2], vec![22.0 - 32.0]);
+    assert_eq!(f.offset[2], vec![32.0]);
+    assert_eq!(f.model_only[2], vec![0.0]);
+    assert_eq!(f.persistence[2], vec![None]);
     let _ = Sequence::default();
 }

@@ -17,7 +17,7 @@ use std::path::PathBuf;
 #[derive(Debug, Clone, clap::Args)]
 pub struct ExciteArgs {
     /// Robot description (DH TOML or URDF).
-    #[arg(long, default_value = "model-export/robots/default.toml")]
+    #[arg(long, default_value = crate::sim::cli::DEFAULT_ROBOT)]
     pub robot: PathBuf,
     /// Moving joints: `file` (the robot file's selection), `wrist` (the paper: joints 1-3
     /// locked at zero, 4.. moving), `all`, or a 1-based list such as `4,5,6` (others locked at
