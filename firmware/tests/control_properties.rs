@@ -367,11 +367,9 @@ fn compensator_outputs_stay_finite_and_within_limits() {
 fn compiled_in_model_and_lstm_stay_finite_and_within_limits() {
     use firmware::model::default as m;
     const TICKS: u32 = 50_000;
-    // A plausibility bound inside the random measured torques' range (+-250 N m; the
-    // paper preset predicts measured torque + increment) so that the LSTM -> model
-    // fallback happens too.
+    // A tight plausibility bound so that the LSTM -> model fallback happens too.
     let cfg = CompensatorConfig {
-        max_lstm_correction_nm: 120.0,
+        max_lstm_correction_nm: 2.0,
         ..compensator_config()
     };
     let model = SubsetModel {

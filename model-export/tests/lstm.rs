@@ -285,12 +285,10 @@ fn presets_align_inputs_and_targets() {
     let p = FeatureSpec::paper(&[4]).sequence(&table).unwrap();
     assert_eq!(p.len(), 4);
     assert_eq!(p.inputs[0], vec![30.0, 20.0, 0.0]);
-    // The next-step measured torque (21) as the increment over the measured torque
-    // given (20); the model's prediction (31) and persistence (20) in the same terms.
-    assert_eq!(p.targets[0], vec![1.0]);
-    assert_eq!(p.offset[0], vec![20.0]);
-    assert_eq!(p.model_only[0], vec![11.0]);
-    assert_eq!(p.persistence[0], vec![Some(0.0)]);
+    assert_eq!(p.targets[0], vec![21.0]);
+    assert_eq!(p.offset[0], vec![0.0]);
+    assert_eq!(p.model_only[0], vec![31.0]);
+    assert_eq!(p.persistence[0], vec![Some(20.0)]);
     let f = FeatureSpec::feedforward(&[4]).sequence(&table).unwrap();
     assert_eq!(f.len(), 5);
     assert_eq!(f.inputs[2], vec![32.0, 2.0, 12.0]);
@@ -298,5 +296,16 @@ fn presets_align_inputs_and_targets() {
     assert_eq!(f.offset[2], vec![32.0]);
     assert_eq!(f.model_only[2], vec![0.0]);
     assert_eq!(f.persistence[2], vec![None]);
+    // An increment over an input (`minus_now`): the target, the model's prediction and
+    // persistence all relative to the subtracted column at the input step.
+    let mut inc = FeatureSpec::paper(&[4]);
+    inc.targets[0].minus = Some("tau_meas_j4".into());
+    inc.targets[0].minus_now = true;
+    assert_eq!(inc.output_names(), ["tau_meas_j4@+1-tau_meas_j4@0"]);
+    let p = inc.sequence(&table).unwrap();
+    assert_eq!(p.targets[0], vec![1.0]);
+    assert_eq!(p.offset[0], vec![20.0]);
+    assert_eq!(p.model_only[0], vec![11.0]);
+    assert_eq!(p.persistence[0], vec![Some(0.0)]);
     let _ = Sequence::default();
 }

@@ -127,8 +127,7 @@ impl<T: TorqueNetwork<I, O> + ?Sized, const I: usize, const O: usize> TorqueNetw
 /// The LSTM stage for `J` joints (`I = 3 J` inputs, `J` outputs, checked at compile
 /// time), in the feature layout of its preset (all joints of one kind, then the next):
 ///
-/// - `paper`: inputs `tau_model`, `tau_meas`, `q` -> the torque one tick later, as the
-///   increment over `tau_meas` that the network predicts ([`FeaturePreset::torque_nm`]). The
+/// - `paper`: inputs `tau_model`, `tau_meas`, `q` -> the torque one tick later. The
 ///   network was trained on (inputs at step k, torque at k+1), so each tick pairs the
 ///   model torque and position of the *previous* tick (the instant the feedforward was
 ///   computed for then) with the torque measured since (`tau_meas`, e.g. the mean over
@@ -192,7 +191,7 @@ impl<N: TorqueNetwork<I, J>, const J: usize, const I: usize> TorquePredictor<J>
         let y = self.network.step(&mut self.state, &x);
         let mut out = [0.0f32; J];
         for (j, o) in out.iter_mut().enumerate() {
-            *o = self.preset.torque_nm(y[j], tau_meas[j], input.model_nm[j]);
+            *o = self.preset.torque_nm(y[j], input.model_nm[j]);
         }
         out
     }
@@ -260,19 +259,18 @@ mod tests {
         let mut p = LstmPredictor::<_, 1, 3>::new(&net1::NETWORK, FeaturePreset::Paper).unwrap();
         let mut st = net1::State::new();
         // First tick after a reset: no previous tick, this tick's values.
-        // The prediction is the measured torque plus the network's increment.
         let y = p.predict_nm(&input1(0.3, 1.0, 2.0, 1.5));
-        assert_eq!(y, [2.0 + net1::NETWORK.step(&mut st, &[1.5, 2.0, 0.3])[0]]);
+        assert_eq!(y, net1::NETWORK.step(&mut st, &[1.5, 2.0, 0.3]));
         // Then: previous model torque and position, this tick's measured torque.
         let y = p.predict_nm(&input1(0.4, 1.0, 2.5, 1.7));
-        assert_eq!(y, [2.5 + net1::NETWORK.step(&mut st, &[1.5, 2.5, 0.3])[0]]);
+        assert_eq!(y, net1::NETWORK.step(&mut st, &[1.5, 2.5, 0.3]));
         let y = p.predict_nm(&input1(0.5, 1.0, 2.6, 1.9));
-        assert_eq!(y, [2.6 + net1::NETWORK.step(&mut st, &[1.7, 2.6, 0.4])[0]]);
+        assert_eq!(y, net1::NETWORK.step(&mut st, &[1.7, 2.6, 0.4]));
         // Reset forgets both the recurrent state and the previous tick.
         p.reset();
         let mut st = net1::State::new();
         let y = p.predict_nm(&input1(0.6, 1.0, 2.7, 2.0));
-        assert_eq!(y, [2.7 + net1::NETWORK.step(&mut st, &[2.0, 2.7, 0.6])[0]]);
+        assert_eq!(y, net1::NETWORK.step(&mut st, &[2.0, 2.7, 0.6]));
     }
 
     #[test]

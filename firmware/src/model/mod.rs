@@ -53,8 +53,8 @@ pub enum Precision {
 /// Which features the network reads (see `model-export`'s `nn::data`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum FeaturePreset {
-    /// Per joint: model torque, measured torque, position (3 per joint); each output is
-    /// the next-step measured torque's increment over the measured torque given.
+    /// Per joint: model torque, measured torque, position (3 per joint) -> the next-step
+    /// torque.
     Paper,
     /// Per joint: model torque, position, velocity (3 per joint).
     Feedforward,
@@ -71,14 +71,12 @@ impl FeaturePreset {
         }
     }
 
-    /// The joint torque an output stands for, N*m: `Paper` adds the measured torque
-    /// (the network predicts the increment), `Feedforward` the model torque (it
-    /// predicts the residual), `Custom` takes the output as it is.
-    pub fn torque_nm(self, output: f32, measured_nm: f32, model_nm: f32) -> f32 {
+    /// The joint torque an output stands for, N*m: `Feedforward` adds the model torque
+    /// (the network predicts the residual); `Paper` and `Custom` outputs are torques.
+    pub fn torque_nm(self, output: f32, model_nm: f32) -> f32 {
         match self {
-            FeaturePreset::Paper => measured_nm + output,
             FeaturePreset::Feedforward => model_nm + output,
-            FeaturePreset::Custom => output,
+            FeaturePreset::Paper | FeaturePreset::Custom => output,
         }
     }
 

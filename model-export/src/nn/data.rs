@@ -6,15 +6,12 @@
 //! `q_j{j}` position (rad), `qd_j{j}` velocity (rad/s), `tau_meas_j{j}` measured torque
 //! (N·m), `tau_model_j{j}` the identified model's torque (N·m).
 //! - `paper`: inputs `tau_model_j*`, `tau_meas_j*`, `q_j*` (all joints of one kind, then
-//!   the next kind) → the measured torque one step ahead, `tau_meas_j*(t+1)`. The network
-//!   predicts it as an increment over the measured torque it is given,
-//!   `tau_meas_j*(t+1) - tau_meas_j*(t)` (output name `tau_meas_j4@+1-tau_meas_j4@0`), and
-//!   the prediction is `tau_meas(t) + output`: a residual connection around the paper's
-//!   network, so that an untrained output (0) is the persistence baseline rather than a
-//!   torque the LSTM has to rebuild from its normalised input (measured on the default
-//!   wrist: without it persistence beat the network on two of three joints). Errors are
-//!   the same quantity either way: RMS of `tau_meas(t+1)` minus its prediction. Model-only
-//!   prediction `tau_model_j*(t+1)`; persistence baseline `tau_meas_j*(t)` (output 0).
+//!   the next kind) → target `tau_meas_j*` one step ahead; model-only prediction
+//!   `tau_model_j*` at that step; persistence baseline `tau_meas_j*` now. (Predicting the
+//!   increment over the measured torque instead, a residual connection, beat persistence
+//!   on the default wrist in open loop but, fed forward, closes a unit-gain loop on the
+//!   applied torque that destabilised the closed-loop simulation: measured, see
+//!   model-export/README.md. `TargetSpec::minus_now` keeps that form available.)
 //! - `feedforward`: inputs `tau_model_j*`, `q_j*`, `qd_j*` → target the residual
 //!   `tau_meas_j* - tau_model_j*` at the same step; model-only prediction 0.
 //! - `custom`: `--inputs a,b,c --targets y1,y2-z2 --shift k`: a target is a column or a
@@ -162,8 +159,8 @@ impl FeatureSpec {
             .iter()
             .map(|j| TargetSpec {
                 column: format!("tau_meas_j{j}"),
-                minus: Some(format!("tau_meas_j{j}")),
-                minus_now: true,
+                minus: None,
+                minus_now: false,
                 shift: 1,
                 model_only: Some(format!("tau_model_j{j}")),
             })
