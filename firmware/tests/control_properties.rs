@@ -374,7 +374,7 @@ fn compiled_in_model_and_lstm_stay_finite_and_within_limits() {
     };
     let model = SubsetModel {
         model: &m::DYNAMICS,
-        joints: [3, 4, 5],
+        joints: firmware::model::dynamics_indices(m::JOINT_INDICES, m::DYNAMICS_JOINTS),
         fixed_q_rad: [0.0; m::DYNAMICS_JOINTS],
     };
     let lstm = LstmPredictor::<_, 3, { m::INPUTS }>::new(&m::NETWORK, m::FEATURE_PRESET).unwrap();

@@ -310,7 +310,11 @@ pub fn demo(a: &DemoArgs) -> Result<()> {
     sim(&mut pl, "test", traj("test.json"), v.test_periods, 11)?;
     let mut lstm_logs = vec![s("train")];
     let mut validation_logs = Vec::new();
-    for seed in v.lstm_log_seeds.clone().chain(v.validation_log_seeds.clone()) {
+    for seed in v
+        .lstm_log_seeds
+        .clone()
+        .chain(v.validation_log_seeds.clone())
+    {
         let name = format!("random{seed}");
         let t = vec![
             s("--seeded-trajectory"),
@@ -709,9 +713,17 @@ impl Report {
              what a drive knows before the tick, -> the residual τ - τ_model at the same step) on \
              the same test run:\n"
         );
-        let _ = writeln!(md, "| joint | uncompensated | compensated | reduction % |\n|---|---:|---:|---:|");
+        let _ = writeln!(
+            md,
+            "| joint | uncompensated | compensated | reduction % |\n|---|---:|---:|---:|"
+        );
         let mut feedforward = Vec::new();
-        for (k, r) in evaluate_ff["data"][0]["outputs"].as_array().into_iter().flatten().enumerate() {
+        for (k, r) in evaluate_ff["data"][0]["outputs"]
+            .as_array()
+            .into_iter()
+            .flatten()
+            .enumerate()
+        {
             let f = |key: &str| r[key].as_f64().unwrap_or(f64::NAN);
             let _ = writeln!(
                 md,

@@ -17,13 +17,29 @@ fn fast_demo_writes_the_report_and_its_figures_match_the_stage_commands() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("report");
     let out_s = out.to_str().unwrap().to_string();
-    let cli = Cli::try_parse_from(["model-export", "demo", "--fast", "--no-firmware", "--out", &out_s])
-        .unwrap();
+    let cli = Cli::try_parse_from([
+        "model-export",
+        "demo",
+        "--fast",
+        "--no-firmware",
+        "--out",
+        &out_s,
+    ])
+    .unwrap();
     run(cli).expect("demo --fast");
 
     let md = std::fs::read_to_string(out.join("report.md")).unwrap();
-    assert!(md.contains("fast (CI) variant"), "the report names its variant");
-    for section in ["Figures 3 and 4", "Table 2", "Closed loop", "Quantised networks", "Stages"] {
+    assert!(
+        md.contains("fast (CI) variant"),
+        "the report names its variant"
+    );
+    for section in [
+        "Figures 3 and 4",
+        "Table 2",
+        "Closed loop",
+        "Quantised networks",
+        "Stages",
+    ] {
         assert!(md.contains(section), "report.md lacks `{section}`");
     }
     for figure in [
@@ -35,7 +51,10 @@ fn fast_demo_writes_the_report_and_its_figures_match_the_stage_commands() {
     ] {
         assert!(md.contains(figure), "report.md does not show {figure}");
         let svg = std::fs::read_to_string(out.join(figure)).unwrap();
-        assert!(svg.starts_with("<svg") || svg.starts_with("<?xml"), "{figure}");
+        assert!(
+            svg.starts_with("<svg") || svg.starts_with("<?xml"),
+            "{figure}"
+        );
     }
     let report = read_json(&out.join("report.json"));
     assert_eq!(report["variant"], "fast (CI)");
@@ -47,7 +66,13 @@ fn fast_demo_writes_the_report_and_its_figures_match_the_stage_commands() {
             assert!(v.is_finite() && v > 0.0, "{row}");
         }
     }
-    assert!(report["stages"].as_array().unwrap().iter().all(|s| s["status"] == "ok"));
+    assert!(
+        report["stages"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .all(|s| s["status"] == "ok")
+    );
 
     // Run the recorded `evaluate paper` command again, by itself, with its report
     // elsewhere: the same figures as the report's Table 2.

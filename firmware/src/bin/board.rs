@@ -124,23 +124,10 @@ fn compensator_config() -> CompensatorConfig {
     }
 }
 
-/// Index in the compiled-in dynamics of each compensated joint: the robot joint
-/// indices when the dynamics cover the whole arm, else (joints locked away at export)
-/// 0..JOINTS.
-const MODEL_JOINTS: [usize; JOINTS] = {
-    let mut m = compiled::JOINT_INDICES;
-    if compiled::DYNAMICS_JOINTS == JOINTS {
-        let mut k = 0;
-        while k < JOINTS {
-            m[k] = k;
-            k += 1;
-        }
-    }
-    m
-};
+/// Index in the compiled-in dynamics of each compensated joint.
+const MODEL_JOINTS: [usize; JOINTS] =
+    firmware::model::dynamics_indices(compiled::JOINT_INDICES, compiled::DYNAMICS_JOINTS);
 
-/// The model stage: the compiled-in identified dynamics on the compensated joints
-/// (the others held at 0 rad, at rest).
 fn model() -> SubsetModel<
     &'static RigidBodyModel<{ compiled::DYNAMICS_JOINTS }>,
     { compiled::DYNAMICS_JOINTS },

@@ -239,7 +239,7 @@ impl<const J: usize> TorquePredictor<J> for DecoupledJointModel<J> {
 mod tests {
     use super::*;
     use crate::control::JointState;
-    use crate::model::{bench_joint_int16 as net1, default as dm};
+    use crate::model::{bench_joint_int16 as net1, bench_paper_int16 as dm};
 
     fn input1(q: f32, qd: f32, tau_meas: f32, model: f32) -> PredictorInput<1> {
         PredictorInput {

@@ -39,6 +39,24 @@
 /// Layout version of generated model files this firmware reads.
 pub const SCHEMA_VERSION: u32 = 1;
 
+/// Index in a compiled-in dynamics model of each compensated joint: the robot joint
+/// indices when the dynamics cover the whole arm, else (the other joints locked away at
+/// export, as in the paper's wrist setup) `0..J`.
+pub const fn dynamics_indices<const J: usize>(
+    joint_indices: [usize; J],
+    dynamics_joints: usize,
+) -> [usize; J] {
+    let mut m = joint_indices;
+    if dynamics_joints == J {
+        let mut k = 0;
+        while k < J {
+            m[k] = k;
+            k += 1;
+        }
+    }
+    m
+}
+
 /// Numeric precision of a compiled-in network.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Precision {
