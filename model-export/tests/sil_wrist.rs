@@ -47,11 +47,10 @@ fn zero_output_lstm() -> WristLstm {
         },
         5,
     );
-    m.preset = "paper".into();
-    m.input_names = ["tau_model", "tau_meas", "q"]
-        .iter()
-        .flat_map(|k| (4..=6).map(move |j| format!("{k}_j{j}")))
-        .collect();
+    let spec = model_export::nn::data::FeatureSpec::paper(&[4, 5, 6]);
+    m.preset = spec.preset.clone();
+    m.output_names = spec.output_names();
+    m.input_names = spec.inputs;
     m.w_out.iter_mut().for_each(|w| *w = 0.0);
     m.b_out.iter_mut().for_each(|b| *b = 0.0);
     m.output_mean.iter_mut().for_each(|b| *b = 0.0);
@@ -165,7 +164,7 @@ fn cli_simulate_identify_sil_writes_markdown_and_json() {
     cli(&tq).unwrap();
     let header = std::fs::read_to_string(&feat).unwrap();
     assert!(header.starts_with(
-        "t_s,q_j4,q_j5,q_j6,qd_j4,qd_j5,qd_j6,tau_meas_j4,tau_meas_j5,tau_meas_j6,tau_model_j4,tau_model_j5,tau_model_j6\n"
+        "time_s,q_j4,q_j5,q_j6,qd_j4,qd_j5,qd_j6,tau_meas_j4,tau_meas_j5,tau_meas_j6,tau_model_j4,tau_model_j5,tau_model_j6\n"
     ));
     cli(&[
         "sil",
