@@ -116,7 +116,9 @@ impl Pipeline {
             std::iter::once("model-export".to_string()).chain(args.iter().cloned()),
         )
         .with_context(|| format!("stage {stage}: bad arguments"))?;
+        let spinner = stage_spinner(stage);
         let result = run(cli).with_context(|| format!("stage {stage}"));
+        spinner.finish_and_clear();
         self.record(
             stage,
             command,
@@ -135,6 +137,7 @@ impl Pipeline {
         );
         println!("\n==> [{stage}] {command}");
         let t0 = Instant::now();
+        let spinner = stage_spinner(stage);
         let out = Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()))
             .current_dir(workspace_root())
             .args(args)
@@ -142,6 +145,7 @@ impl Pipeline {
             .stderr(std::process::Stdio::inherit())
             .output()
             .with_context(|| format!("stage {stage}: running cargo"));
+        spinner.finish_and_clear();
         let result = match out {
             Ok(o) if o.status.success() => Ok(String::from_utf8_lossy(&o.stdout).into_owned()),
             Ok(o) => Err(anyhow::anyhow!(
@@ -182,6 +186,18 @@ impl Pipeline {
         });
         Ok(())
     }
+}
+
+/// A spinner with the stage's name and elapsed time while it runs (on a terminal).
+fn stage_spinner(stage: &str) -> indicatif::ProgressBar {
+    let bar = indicatif::ProgressBar::new_spinner().with_message(format!("demo: {stage}"));
+    if let Ok(style) =
+        indicatif::ProgressStyle::with_template("{spinner} [{elapsed_precise}] {msg}")
+    {
+        bar.set_style(style);
+    }
+    bar.enable_steady_tick(std::time::Duration::from_millis(200));
+    bar
 }
 
 /// The workspace root (the demo drives cargo there for the firmware stages).
