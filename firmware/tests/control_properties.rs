@@ -27,18 +27,7 @@ fn nasty(rng: &mut ChaCha8Rng, plausible: f32) -> f32 {
 
 fn drive_config() -> DriveConfig {
     DriveConfig {
-        current: CurrentLoopConfig {
-            motor: MotorParameters {
-                pole_pairs: 7,
-                phase_resistance_ohm: 0.3,
-                phase_inductance_h: 3e-4,
-                flux_linkage_wb: 0.01,
-            },
-            pwm_hz: 20_000.0,
-            bandwidth_rad_s: 6000.0,
-            max_modulation: 0.95,
-            decoupling: true,
-        },
+        current: CurrentLoopConfig::tuned(MotorParameters::BOARD, 20_000.0),
         cascade: CascadeConfig {
             rate_hz: 5000.0,
             position_kp: 50.0,

@@ -88,11 +88,29 @@ pub struct FeatureArgs {
     /// `custom`: steps ahead the targets are taken.
     #[arg(long, default_value_t = 0)]
     pub shift: usize,
+    /// `paper`: how the network's output gives the next-step torque: `next` (the torque
+    /// itself, the paper's form and the one a drive can feed forward) or `increment`
+    /// (the measured torque now plus the output: beats persistence in open loop, but fed
+    /// forward it closes a unit-gain loop on the applied torque; not exportable).
+    #[arg(long, value_enum, default_value_t = PaperOutput::Next)]
+    pub paper_output: PaperOutput,
+}
+
+/// How a `paper` network's output gives the next-step torque.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum PaperOutput {
+    /// The next-step torque itself.
+    Next,
+    /// The increment over the measured torque now.
+    Increment,
 }
 
 impl FeatureArgs {
     fn spec(&self) -> Result<FeatureSpec> {
         match self.preset.as_str() {
+            "paper" if self.paper_output == PaperOutput::Increment => {
+                Ok(FeatureSpec::paper_increment(&self.joints))
+            }
             "paper" => Ok(FeatureSpec::paper(&self.joints)),
             "feedforward" => Ok(FeatureSpec::feedforward(&self.joints)),
             "custom" => FeatureSpec::custom(&self.inputs, &self.targets, self.shift),

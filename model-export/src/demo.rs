@@ -3,7 +3,8 @@
 //! stage's own subcommand, in process, with the command line printed and recorded, so
 //! that running the recorded commands one by one reproduces every figure: excitation
 //! design (training and test trajectory), simulated logging, identification, the LSTM
-//! datasets, training (paper configuration), evaluation, quantisation and export, the
+//! datasets, training (paper configuration; the `paper` network in both output forms and
+//! the `feedforward` preset), evaluation, quantisation and export, the
 //! firmware build for the board, the size and cycle budget run and the closed-loop
 //! simulation. It writes one report folder: `report.md` (the paper's results section:
 //! Table 2 beside ours, Figures 3, 4, 10, 12 and 13, the budget and closed-loop tables)
@@ -389,9 +390,9 @@ pub fn demo(a: &DemoArgs) -> Result<()> {
         pl.stage(&format!("dataset {name}"), &args)?;
     }
 
-    // 5-6. LSTM training (the paper's configuration) for the `paper` preset and the
-    //      `feedforward` preset, and evaluation on the whole test run, streamed through
-    //      the firmware f32 step.
+    // 5-6. LSTM training (the paper's configuration) for the `paper` preset (both output
+    //      forms) and the `feedforward` preset, and evaluation on the whole test run,
+    //      streamed through the firmware f32 step.
     let figures = out.join("figures");
     let csv_list = |names: &[String]| -> String {
         names
@@ -401,15 +402,21 @@ pub fn demo(a: &DemoArgs) -> Result<()> {
             .join(",")
     };
     let test_data = data.join("test.csv");
-    for preset in ["paper", "feedforward"] {
-        let lstm = model_dir.join(format!("lstm_{preset}.safetensors"));
-        let loss_plot = if preset == "paper" {
+    // `paper_increment`: the paper's network with the increment output (open-loop
+    // prediction: Table 2 beside the next-step form; the exporter refuses it).
+    for (name, preset, paper_output) in [
+        ("paper", "paper", "next"),
+        ("paper_increment", "paper", "increment"),
+        ("feedforward", "feedforward", "next"),
+    ] {
+        let lstm = model_dir.join(format!("lstm_{name}.safetensors"));
+        let loss_plot = if name == "paper" {
             figures.join("fig10_loss.svg")
         } else {
-            figures.join("loss_feedforward.svg")
+            figures.join(format!("loss_{name}.svg"))
         };
         pl.stage(
-            &format!("train {preset}"),
+            &format!("train {name}"),
             &[
                 s("train"),
                 s("--data"),
@@ -418,6 +425,8 @@ pub fn demo(a: &DemoArgs) -> Result<()> {
                 csv_list(&validation_logs),
                 s("--preset"),
                 s(preset),
+                s("--paper-output"),
+                s(paper_output),
                 s("--joints"),
                 s("4,5,6"),
                 s("--epochs"),
@@ -433,7 +442,7 @@ pub fn demo(a: &DemoArgs) -> Result<()> {
                 s("--loss-plot"),
                 p(&loss_plot),
                 s("--report"),
-                p(&model_dir.join(format!("train_{preset}.json"))),
+                p(&model_dir.join(format!("train_{name}.json"))),
             ],
         )?;
         let mut args = vec![
@@ -444,15 +453,17 @@ pub fn demo(a: &DemoArgs) -> Result<()> {
             p(&test_data),
             s("--preset"),
             s(preset),
+            s("--paper-output"),
+            s(paper_output),
             s("--joints"),
             s("4,5,6"),
             s("--report"),
-            p(&model_dir.join(format!("evaluate_{preset}.json"))),
+            p(&model_dir.join(format!("evaluate_{name}.json"))),
         ];
-        if preset == "paper" {
+        if name == "paper" {
             args.extend([s("--figures"), p(&figures)]);
         }
-        pl.stage(&format!("evaluate {preset}"), &args)?;
+        pl.stage(&format!("evaluate {name}"), &args)?;
     }
     let lstm = model_dir.join("lstm_paper.safetensors");
 
@@ -599,15 +610,20 @@ impl Report {
         let identified = read_json(&out.join("model/identified.json"))?;
         let train = read_json(&out.join("model/train_paper.json"))?;
         let evaluate = read_json(&out.join("model/evaluate_paper.json"))?;
+        let evaluate_inc = read_json(&out.join("model/evaluate_paper_increment.json"))?;
         let evaluate_ff = read_json(&out.join("model/evaluate_feedforward.json"))?;
         let sil_md = std::fs::read_to_string(out.join("sil/sil.md"))
             .with_context(|| format!("reading {}", out.join("sil/sil.md").display()))?;
         let sil_json = read_json(&out.join("sil/sil.json"))?;
         let accuracy = read_json(&out.join("model/accuracy.json"))?;
-        let rows = evaluate["data"][0]["outputs"]
-            .as_array()
-            .cloned()
-            .unwrap_or_default();
+        let outputs = |e: &Value| {
+            e["data"][0]["outputs"]
+                .as_array()
+                .cloned()
+                .unwrap_or_default()
+        };
+        let rows = outputs(&evaluate);
+        let rows_inc = outputs(&evaluate_inc);
 
         let mut md = String::new();
         let _ = writeln!(md, "# Torque compensation on the default robot: results\n");
@@ -687,22 +703,32 @@ impl Report {
         let _ = writeln!(
             md,
             "Next-step measured torque predicted by the identified model alone (uncompensated) \
-             and by the LSTM (compensated, the firmware's f32 step streamed over the whole test \
-             run from a zero state); persistence predicts τ(t+1) = τ(t).\n"
+             and by the paper's network (compensated, the firmware's f32 step streamed over the \
+             whole test run from a zero state); persistence predicts τ(t+1) = τ(t). Two forms of \
+             the same network (9 inputs -> 64 -> LSTM 64 -> 3, same data and training): \
+             *next-step output* predicts the torque itself (the paper's form, the one exported \
+             to the firmware and run in the closed loop below); *increment output* predicts \
+             τ(t+1) - τ(t) and adds the measured τ(t) back (`train --paper-output increment`), \
+             which is what beats persistence, but as a drive's feedforward it closes a \
+             unit-gain loop on the applied torque, so the exporter refuses it \
+             (model-export/README.md).\n"
         );
         let _ = writeln!(
             md,
-            "| joint | paper uncompensated | paper compensated | paper reduction % | ours uncompensated | ours compensated | ours reduction % | persistence |\n|---|---:|---:|---:|---:|---:|---:|---:|"
+            "| joint | paper uncompensated | paper compensated | paper reduction % | ours uncompensated | ours compensated, next-step output | reduction % | ours compensated, increment output | reduction % | persistence |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
         );
         let mut table2 = Vec::new();
-        for ((joint, pu, pc, pr), r) in PAPER_TABLE2.iter().zip(&rows) {
+        for (((joint, pu, pc, pr), r), ri) in PAPER_TABLE2.iter().zip(&rows).zip(&rows_inc) {
             let f = |k: &str| r[k].as_f64().unwrap_or(f64::NAN);
+            let fi = |k: &str| ri[k].as_f64().unwrap_or(f64::NAN);
             let _ = writeln!(
                 md,
-                "| {joint} | {pu:.2} | {pc:.2} | {pr:.1} | {:.3} | {:.3} | {:.1} | {:.3} |",
+                "| {joint} | {pu:.2} | {pc:.2} | {pr:.1} | {:.3} | {:.3} | {:.1} | {:.3} | {:.1} | {:.3} |",
                 f("rms_before"),
                 f("rms_after"),
                 f("reduction_pct"),
+                fi("rms_after"),
+                fi("reduction_pct"),
                 f("rms_persistence")
             );
             table2.push(json!({
@@ -710,6 +736,8 @@ impl Report {
                 "paper": {"uncompensated_nm": pu, "compensated_nm": pc, "reduction_pct": pr},
                 "ours": {"uncompensated_nm": f("rms_before"), "compensated_nm": f("rms_after"),
                          "reduction_pct": f("reduction_pct"), "persistence_nm": f("rms_persistence")},
+                "ours_increment": {"uncompensated_nm": fi("rms_before"), "compensated_nm": fi("rms_after"),
+                         "reduction_pct": fi("reduction_pct"), "persistence_nm": fi("rms_persistence")},
             }));
         }
         let _ = writeln!(
@@ -814,29 +842,38 @@ impl Report {
         let mut summary = String::from("Summary\n");
         let _ = writeln!(
             summary,
-            "{:<10} {:>14} {:>14} {:>12} {:>12}",
-            "joint", "uncompensated", "compensated", "reduction %", "persistence"
+            "{:<6} {:>14} {:>16} {:>12} {:>16} {:>12} {:>12}",
+            "joint",
+            "uncompensated",
+            "next-step out.",
+            "reduction %",
+            "increment out.",
+            "reduction %",
+            "persistence"
         );
         for t in &table2 {
-            let o = &t["ours"];
+            let (o, i) = (&t["ours"], &t["ours_increment"]);
+            let g = |v: &Value, k: &str| v[k].as_f64().unwrap_or(f64::NAN);
             let _ = writeln!(
                 summary,
-                "{:<10} {:>14.3} {:>14.3} {:>12.1} {:>12.3}",
+                "{:<6} {:>14.3} {:>16.3} {:>12.1} {:>16.3} {:>12.1} {:>12.3}",
                 t["joint"],
-                o["uncompensated_nm"].as_f64().unwrap_or(f64::NAN),
-                o["compensated_nm"].as_f64().unwrap_or(f64::NAN),
-                o["reduction_pct"].as_f64().unwrap_or(f64::NAN),
-                o["persistence_nm"].as_f64().unwrap_or(f64::NAN)
+                g(o, "uncompensated_nm"),
+                g(o, "compensated_nm"),
+                g(o, "reduction_pct"),
+                g(i, "compensated_nm"),
+                g(i, "reduction_pct"),
+                g(o, "persistence_nm")
             );
         }
         for r in records {
             let _ = writeln!(
                 summary,
-                "  {:<22} {:>7.1} s  {}",
+                "  {:<26} {:>7.1} s  {}",
                 r.stage, r.seconds, r.status
             );
         }
-        let _ = write!(summary, "  {:<22} {:>7.1} s", "total", total_s);
+        let _ = write!(summary, "  {:<26} {:>7.1} s", "total", total_s);
 
         let json = json!({
             "variant": v.name,
@@ -850,6 +887,7 @@ impl Report {
             "training": {"lr": train["lr"], "best_epoch": train["best_epoch"], "epochs": train["epochs"],
                           "train_loss": train["train_loss"], "val_loss": train["val_loss"]},
             "evaluation": evaluate,
+            "evaluation_increment": evaluate_inc,
             "quantisation": accuracy,
             "budget": budget.map(|_| read_json(&out.join("firmware/budget.json"))).transpose()?,
         });

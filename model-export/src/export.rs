@@ -1129,6 +1129,14 @@ pub mod cli {
 
     /// Exports `m` to `a.out`; returns the exported network.
     pub fn export(m: &LstmModel, a: &ExportArgs) -> Result<Exported> {
+        if let Some(name) = m.output_names.iter().find(|n| n.ends_with("@0")) {
+            bail!(
+                "the model predicts an increment over one of its inputs (output `{name}`, \
+                 `train --paper-output increment`): fed forward in a drive it closes a \
+                 unit-gain loop on the applied torque (model-export/README.md); export a \
+                 network trained with `--paper-output next`"
+            );
+        }
         let net = Exported::new(m, a.precision).with_context(|| {
             format!(
                 "exporting {}",

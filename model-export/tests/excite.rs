@@ -8,8 +8,8 @@ use model_export::excite::objective::observation_matrix;
 use model_export::excite::output::{ExcitationFile, OutputPaths, PlaybackLayout, write_outputs};
 use model_export::excite::toy::PendulumChain;
 use model_export::excite::{
-    Derivative, ExcitationSettings, ExcitationTrajectory, FourierFamily, JointLimits,
-    PointConstraint, design, random_feasible,
+    BaselineScaling, Derivative, ExcitationSettings, ExcitationTrajectory, FourierFamily,
+    JointLimits, PointConstraint, design, random_feasible,
 };
 
 fn limits(n: usize) -> Vec<JointLimits> {
@@ -87,7 +87,7 @@ fn optimised_design_is_admissible_and_beats_random_trajectories() {
     // Baseline: the median of several random feasible trajectories.
     let mut random: Vec<f64> = (0..5)
         .map(|s| {
-            let tr = random_feasible(&family, 100 + s);
+            let tr = random_feasible(&family, 100 + s, BaselineScaling::PerJoint);
             assert_admissible(&tr, &rest, &lim);
             condition_number(&observation_matrix(&model, &tr, 100.0))
         })

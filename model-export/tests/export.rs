@@ -136,6 +136,28 @@ fn scales_that_overflow_the_q_format_are_refused() {
 }
 
 #[test]
+fn an_increment_network_is_refused_and_writes_nothing() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let out = dir.path().join("model.rs");
+    let mut a = args(out.clone(), Precision::Int16);
+    a.dims = vec![3, 4, 4, 1];
+    let mut m = small();
+    m.preset = "paper".into();
+    let spec = model_export::nn::data::FeatureSpec::paper_increment(&[4]);
+    m.input_names = spec.inputs.clone();
+    m.output_names = spec.output_names();
+    let err = export::cli::export(&m, &a).unwrap_err();
+    let text = format!("{err:#}");
+    assert!(text.contains("tau_meas_j4@+1-tau_meas_j4@0"), "{text}");
+    assert!(text.contains("--paper-output next"), "{text}");
+    assert!(!out.exists(), "a refused export left {}", out.display());
+    // The same network with the next-step output exports.
+    m.output_names = model_export::nn::data::FeatureSpec::paper(&[4]).output_names();
+    export::cli::export(&m, &a).expect("next-step paper network exports");
+    assert!(out.exists());
+}
+
+#[test]
 fn a_model_over_the_flash_budget_is_refused_and_writes_nothing() {
     let dir = tempfile::tempdir().expect("tempdir");
     let budgets = dir.path().join("budgets.toml");

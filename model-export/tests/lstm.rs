@@ -296,11 +296,10 @@ fn presets_align_inputs_and_targets() {
     assert_eq!(f.offset[2], vec![32.0]);
     assert_eq!(f.model_only[2], vec![0.0]);
     assert_eq!(f.persistence[2], vec![None]);
-    // An increment over an input (`minus_now`): the target, the model's prediction and
-    // persistence all relative to the subtracted column at the input step.
-    let mut inc = FeatureSpec::paper(&[4]);
-    inc.targets[0].minus = Some("tau_meas_j4".into());
-    inc.targets[0].minus_now = true;
+    // The increment form (`paper_increment`, `minus_now`): the target, the model's
+    // prediction and persistence all relative to the subtracted column at the input step.
+    let inc = FeatureSpec::paper_increment(&[4]);
+    assert_eq!(inc.inputs, FeatureSpec::paper(&[4]).inputs);
     assert_eq!(inc.output_names(), ["tau_meas_j4@+1-tau_meas_j4@0"]);
     let p = inc.sequence(&table).unwrap();
     assert_eq!(p.targets[0], vec![1.0]);

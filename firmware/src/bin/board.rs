@@ -65,18 +65,7 @@ const VOLTS_PER_COUNT: f32 = 0.019_3;
 /// The drive's configuration (motor and gear of the wrist joint).
 fn drive_config() -> DriveConfig {
     DriveConfig {
-        current: CurrentLoopConfig {
-            motor: MotorParameters {
-                pole_pairs: 7,
-                phase_resistance_ohm: 0.3,
-                phase_inductance_h: 3e-4,
-                flux_linkage_wb: 0.01,
-            },
-            pwm_hz: PWM_HZ as f32,
-            bandwidth_rad_s: 6000.0,
-            max_modulation: 0.95,
-            decoupling: true,
-        },
+        current: CurrentLoopConfig::tuned(MotorParameters::BOARD, PWM_HZ as f32),
         cascade: CascadeConfig {
             rate_hz: 5000.0,
             position_kp: 40.0,

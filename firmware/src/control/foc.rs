@@ -185,6 +185,14 @@ pub struct MotorParameters {
 }
 
 impl MotorParameters {
+    /// The board's joint motor (the STM32G474 drive's BLDC; also the tests' motor).
+    pub const BOARD: MotorParameters = MotorParameters {
+        pole_pairs: 7,
+        phase_resistance_ohm: 0.3,
+        phase_inductance_h: 3e-4,
+        flux_linkage_wb: 0.01,
+    };
+
     /// Motor-side torque constant, N*m per A of q current.
     pub fn torque_constant_nm_per_a(&self) -> f32 {
         1.5 * self.pole_pairs as f32 * self.flux_linkage_wb
@@ -204,6 +212,20 @@ pub struct CurrentLoopConfig {
     pub max_modulation: f32,
     /// Add the back-EMF and cross-coupling terms to the dq voltages.
     pub decoupling: bool,
+}
+
+impl CurrentLoopConfig {
+    /// The standard tuning for `motor` at `pwm_hz`: 6 000 rad/s closed-loop bandwidth,
+    /// 95 % of the linear SVM range, back-EMF and cross-coupling decoupling on.
+    pub const fn tuned(motor: MotorParameters, pwm_hz: f32) -> Self {
+        CurrentLoopConfig {
+            motor,
+            pwm_hz,
+            bandwidth_rad_s: 6000.0,
+            max_modulation: 0.95,
+            decoupling: true,
+        }
+    }
 }
 
 /// Output of one current-loop step.
@@ -396,16 +418,8 @@ mod tests {
 
     fn test_loop() -> CurrentLoop {
         CurrentLoop::new(CurrentLoopConfig {
-            motor: MotorParameters {
-                pole_pairs: 7,
-                phase_resistance_ohm: 0.3,
-                phase_inductance_h: 3e-4,
-                flux_linkage_wb: 0.01,
-            },
-            pwm_hz: 20_000.0,
-            bandwidth_rad_s: 6000.0,
-            max_modulation: 0.95,
             decoupling: false,
+            ..CurrentLoopConfig::tuned(MotorParameters::BOARD, 20_000.0)
         })
     }
 

@@ -18,8 +18,8 @@ pub mod trajectory;
 pub use constraints::{ConstraintMargin, FourierFamily, JointLimits, LimitKind, PointConstraint};
 pub use objective::{Criterion, ExcitationScore, ObservationModel};
 pub use optimise::{
-    ExcitationDesign, ExcitationSettings, PopulationStats, RandomBaseline, Repair, design,
-    random_baseline, random_feasible,
+    BaselineScaling, ExcitationDesign, ExcitationSettings, PopulationStats, RandomBaseline, Repair,
+    design, random_baseline, random_feasible,
 };
 pub use trajectory::{Derivative, ExcitationTrajectory, JointFourier};
 

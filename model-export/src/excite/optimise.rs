@@ -331,20 +331,51 @@ pub fn design<M: ObservationModel + ?Sized>(
     })
 }
 
+/// How a random baseline trajectory is brought onto the limits.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum BaselineScaling {
+    /// Every joint scaled onto its own tightest limit (the optimiser's per-joint repair with
+    /// no cap): a generous baseline that uses every joint's limits as fully as a design.
+    PerJoint,
+    /// One scale for all joints, onto the tightest limit of any joint: random coefficients
+    /// shrunk (or stretched) uniformly until feasible, the plain random feasible trajectory.
+    Common,
+}
+
+impl BaselineScaling {
+    /// Both, generous first.
+    pub const ALL: [BaselineScaling; 2] = [BaselineScaling::PerJoint, BaselineScaling::Common];
+
+    /// How the population was scaled, in words.
+    pub fn describe(self) -> &'static str {
+        match self {
+            BaselineScaling::PerJoint => "every joint scaled onto its own tightest limit",
+            BaselineScaling::Common => "one scale for all joints, onto the tightest limit",
+        }
+    }
+}
+
 /// A random feasible trajectory of the family (the baseline the design must beat): a
 /// standard-normal decision vector (the optimiser's parametrisation: rest-to-rest by
-/// construction), every joint scaled onto its own tightest limit (the optimiser's per-joint
-/// repair with no cap). A generous baseline: it uses every joint's limits as fully as a design.
-pub fn random_feasible(family: &FourierFamily, seed: u64) -> ExcitationTrajectory {
+/// construction), brought onto the limits by `scaling`.
+pub fn random_feasible(
+    family: &FourierFamily,
+    seed: u64,
+    scaling: BaselineScaling,
+) -> ExcitationTrajectory {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let x: Vec<f64> = (0..family.dimension())
         .map(|_| StandardNormal.sample(&mut rng))
         .collect();
-    let s: Vec<f64> = family
+    let mut s: Vec<f64> = family
         .joint_scales(&x, f64::INFINITY)
         .into_iter()
         .map(|s| if s.is_finite() { s } else { 1.0 })
         .collect();
+    if scaling == BaselineScaling::Common {
+        let common = s.iter().copied().fold(f64::INFINITY, f64::min);
+        s.fill(if common.is_finite() { common } else { 1.0 });
+    }
     family.trajectory_per_joint(&x, &s)
 }
 
@@ -362,6 +393,8 @@ pub const DEFAULT_BASELINE_COUNT: usize = 20;
 pub struct RandomBaseline {
     /// Master seed of the population.
     pub seed: u64,
+    /// How each member was brought onto the limits.
+    pub scaling: BaselineScaling,
     /// Seed of each member.
     pub seeds: Vec<u64>,
     /// Score of each member (same order as `seeds`).
@@ -423,14 +456,16 @@ pub fn random_baseline<M: ObservationModel + ?Sized>(
     count: usize,
     seed: u64,
     rate_hz: f64,
+    scaling: BaselineScaling,
 ) -> RandomBaseline {
     let seeds: Vec<u64> = (0..count.max(1)).map(|i| baseline_seed(seed, i)).collect();
     let scores = seeds
         .iter()
-        .map(|&sd| final_score(model, &random_feasible(family, sd), rate_hz))
+        .map(|&sd| final_score(model, &random_feasible(family, sd, scaling), rate_hz))
         .collect();
     RandomBaseline {
         seed,
+        scaling,
         seeds,
         scores,
     }

@@ -11,7 +11,8 @@
 //!   increment over the measured torque instead, a residual connection, beat persistence
 //!   on the default wrist in open loop but, fed forward, closes a unit-gain loop on the
 //!   applied torque that destabilised the closed-loop simulation: measured, see
-//!   model-export/README.md. `TargetSpec::minus_now` keeps that form available.)
+//!   model-export/README.md. `FeatureSpec::paper_increment`, `--paper-output increment`,
+//!   keeps that form for open-loop prediction; the exporter refuses it.)
 //! - `feedforward`: inputs `tau_model_j*`, `q_j*`, `qd_j*` → target the residual
 //!   `tau_meas_j* - tau_model_j*` at the same step; model-only prediction 0.
 //! - `custom`: `--inputs a,b,c --targets y1,y2-z2 --shift k`: a target is a column or a
@@ -170,6 +171,19 @@ impl FeatureSpec {
             inputs,
             targets,
         }
+    }
+
+    /// The `paper` preset's open-loop variant: the same inputs, the next-step torque
+    /// predicted as the measured torque now plus the network's increment (a residual
+    /// connection). It beats persistence in open loop but is not for feedforward (module
+    /// docs), so the exporter refuses it.
+    pub fn paper_increment(joints: &[usize]) -> Self {
+        let mut spec = Self::paper(joints);
+        for t in &mut spec.targets {
+            t.minus = Some(t.column.clone());
+            t.minus_now = true;
+        }
+        spec
     }
 
     /// The `feedforward` preset for `joints` (see module docs).

@@ -15,8 +15,8 @@ pub mod wrist;
 
 use firmware::control::{
     CascadeConfig, Compensator, CompensatorConfig, CurrentLoopConfig, DriveConfig, FaultFlags,
-    JointDrive, JointReference, JointState, MotorParameters, NoPredictor, PredictorInput,
-    SensorSample, StateLimits, TorquePredictor,
+    JointDrive, JointReference, JointState, NoPredictor, PredictorInput, SensorSample, StateLimits,
+    TorquePredictor,
 };
 use plant::{JointPlant, JointPlantConfig, SingleJointLoad};
 use std::f64::consts::TAU;
@@ -130,18 +130,7 @@ impl SingleJointSetup {
             gravity_nm: 20.0,
         };
         let drive = DriveConfig {
-            current: CurrentLoopConfig {
-                motor: MotorParameters {
-                    pole_pairs: plant.pole_pairs,
-                    phase_resistance_ohm: plant.phase_resistance_ohm as f32,
-                    phase_inductance_h: plant.phase_inductance_h as f32,
-                    flux_linkage_wb: plant.flux_linkage_wb as f32,
-                },
-                pwm_hz: plant.pwm_hz as f32,
-                bandwidth_rad_s: 6000.0,
-                max_modulation: 0.95,
-                decoupling: true,
-            },
+            current: CurrentLoopConfig::tuned(plant.motor(), plant.pwm_hz as f32),
             cascade: CascadeConfig {
                 rate_hz: 5000.0,
                 position_kp: 40.0,

@@ -90,6 +90,18 @@ pub struct JointPlantConfig {
     pub seed: u64,
 }
 
+impl JointPlantConfig {
+    /// The motor as the firmware's current loop sees it (f32).
+    pub fn motor(&self) -> firmware::control::MotorParameters {
+        firmware::control::MotorParameters {
+            pole_pairs: self.pole_pairs,
+            phase_resistance_ohm: self.phase_resistance_ohm as f32,
+            phase_inductance_h: self.phase_inductance_h as f32,
+            flux_linkage_wb: self.flux_linkage_wb as f32,
+        }
+    }
+}
+
 /// What the firmware reads each PWM period.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SensedSample {

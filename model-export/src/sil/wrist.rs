@@ -25,8 +25,7 @@ use anyhow::{Context, bail, ensure};
 use firmware::control::{
     CascadeConfig, Compensator, CompensatorConfig, CurrentLoopConfig, DriveConfig, DriveOutput,
     FaultFlags, FeedforwardSource, JointDrive, JointReference, JointState, JointStateMessage,
-    LstmPredictor, MotorParameters, NoPredictor, SensorSample, StateLimits, TorqueNetwork,
-    TorquePredictor,
+    LstmPredictor, NoPredictor, SensorSample, StateLimits, TorqueNetwork, TorquePredictor,
 };
 use firmware::dynamics::RigidBodyModel;
 use firmware::model::FeaturePreset;
@@ -267,18 +266,7 @@ impl WristSetup {
         let drives: [DriveConfig; J] = std::array::from_fn(|k| {
             let m = &motors[k];
             DriveConfig {
-                current: CurrentLoopConfig {
-                    motor: MotorParameters {
-                        pole_pairs: m.pole_pairs,
-                        phase_resistance_ohm: m.phase_resistance_ohm as f32,
-                        phase_inductance_h: m.phase_inductance_h as f32,
-                        flux_linkage_wb: m.flux_linkage_wb as f32,
-                    },
-                    pwm_hz: m.pwm_hz as f32,
-                    bandwidth_rad_s: 6000.0,
-                    max_modulation: 0.95,
-                    decoupling: true,
-                },
+                current: CurrentLoopConfig::tuned(m.motor(), m.pwm_hz as f32),
                 cascade: CascadeConfig {
                     rate_hz: 5000.0,
                     position_kp: 40.0,
