@@ -1,8 +1,8 @@
 //! Benchmark: simulate 60 s of the default 6-DoF arm at a 1 kHz internal rate (issue 4's
 //! target: under 2 s). Prints a table; run with `cargo bench -p model-export --bench simulate`.
+use model_export::excite::{ExcitationTrajectory, JointFourier};
 use model_export::sim::{
-    self, CommandedTrajectory, FourierJoint, FourierTrajectory, PlantEffects, PlantParameters,
-    SimulationConfig,
+    self, CommandedTrajectory, PlantEffects, PlantParameters, SimulationConfig,
 };
 use std::time::Instant;
 
@@ -14,11 +14,11 @@ fn main() {
     .expect("default robot");
     let arm = sim::RobotRigidBody::new(&robot);
     let plant = PlantParameters::default_robot();
-    let series = FourierTrajectory {
+    let series = ExcitationTrajectory {
         period_s: 10.0,
         harmonics: 5,
         joints: (0..6)
-            .map(|j| FourierJoint {
+            .map(|j| JointFourier {
                 q0_rad: 0.1 * j as f64,
                 a_rad: (1..=5)
                     .map(|k| 0.3 / k as f64 * (1.0 + 0.1 * j as f64))

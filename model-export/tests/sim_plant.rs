@@ -1,8 +1,9 @@
 //! Issue 4's proofs about the default robot and the plant simulator.
+use model_export::excite::ExcitationTrajectory;
 use model_export::robot::Robot;
 use model_export::sim::{
-    self, CommandedTrajectory, FourierTrajectory, PlantEffects, PlantParameters, RigidBodyModel,
-    RobotRigidBody, SimulationConfig,
+    self, CommandedTrajectory, PlantEffects, PlantParameters, RigidBodyModel, RobotRigidBody,
+    SimulationConfig,
 };
 use rand::{Rng, SeedableRng};
 use std::path::Path;
@@ -97,7 +98,7 @@ fn run(seed: u64) -> Vec<u8> {
     let robot = Robot::load(robots_dir().join("default.toml")).unwrap();
     let arm = RobotRigidBody::new(&robot);
     let series =
-        FourierTrajectory::seeded_rest_to_rest(5, &[0.0; 6], 5, 10.0, sim::cli::DEMO_LIMITS);
+        ExcitationTrajectory::seeded_rest_to_rest(5, &[0.0; 6], 5, 10.0, sim::cli::DEMO_LIMITS);
     let tr = CommandedTrajectory::Fourier { series, periods: 1 };
     let mut cfg = SimulationConfig::new(6, 6);
     cfg.effects = PlantEffects {
@@ -171,7 +172,7 @@ fn simulated_log_reads_like_a_real_robot_log() {
     let robot = Robot::load(robots_dir().join("default.toml")).unwrap();
     let arm = RobotRigidBody::new(&robot);
     let series =
-        FourierTrajectory::seeded_rest_to_rest(9, &[0.0; 3], 5, 10.0, sim::cli::DEMO_LIMITS);
+        ExcitationTrajectory::seeded_rest_to_rest(9, &[0.0; 3], 5, 10.0, sim::cli::DEMO_LIMITS);
     let tr = CommandedTrajectory::Fourier { series, periods: 1 };
     let mut cfg = SimulationConfig::new(6, 3);
     cfg.driven_joints = vec![3, 4, 5];
@@ -200,7 +201,7 @@ fn simulated_log_reads_like_a_real_robot_log() {
 fn excitation_file_layout_selects_the_driven_joints() {
     let dir = tempfile::tempdir().unwrap();
     let series =
-        FourierTrajectory::seeded_rest_to_rest(4, &[0.0; 3], 5, 10.0, sim::cli::DEMO_LIMITS);
+        ExcitationTrajectory::seeded_rest_to_rest(4, &[0.0; 3], 5, 10.0, sim::cli::DEMO_LIMITS);
     let file = serde_json::json!({
         "format": "excitation", "version": 1,
         "layout": { "joint_names": ["a", "b", "c", "d", "e", "f"], "moving": [3, 4, 5],

@@ -1,8 +1,7 @@
 //! Command-line arguments of `model-export simulate` and `model-export plant-report`.
 use super::report::{self, TorqueSource};
-use super::{
-    CommandedTrajectory, FourierTrajectory, PlantEffects, PlantParameters, SimulationConfig,
-};
+use super::{CommandedTrajectory, PlantEffects, PlantParameters, SimulationConfig};
+use crate::excite::ExcitationTrajectory;
 use anyhow::{Context, ensure};
 use clap::Args;
 use std::path::{Path, PathBuf};
@@ -253,7 +252,7 @@ pub fn trajectory_or_seeded(
     match path {
         Some(p) => CommandedTrajectory::load(p, periods),
         None => Ok(CommandedTrajectory::Fourier {
-            series: FourierTrajectory::seeded_rest_to_rest(
+            series: ExcitationTrajectory::seeded_rest_to_rest(
                 seed,
                 &vec![0.0; n],
                 5,

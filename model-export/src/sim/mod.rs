@@ -22,7 +22,7 @@ pub use drive::{DriveState, DriveTorque};
 pub use log::SimulatedLog;
 pub use params::{JointDrive, PlantParameters, RippleHarmonic, SensorParameters};
 pub use rigid::{DhArm, DhLink, RigidBodyModel};
-pub use trajectory::{CommandedTrajectory, FourierJoint, FourierTrajectory, PlaybackTrajectory};
+pub use trajectory::{CommandedTrajectory, PlaybackTrajectory};
 
 /// Which effects beyond the identification model the plant includes (each switchable).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

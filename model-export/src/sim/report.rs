@@ -169,10 +169,8 @@ pub fn uncompensated_rms(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sim::{
-        self, CommandedTrajectory, FourierTrajectory, PlantEffects, PlantParameters,
-        SimulationConfig,
-    };
+    use crate::excite::ExcitationTrajectory;
+    use crate::sim::{self, CommandedTrajectory, PlantEffects, PlantParameters, SimulationConfig};
 
     fn robot() -> Robot {
         sim::load_robot(std::path::Path::new(sim::cli::DEFAULT_ROBOT)).unwrap()
@@ -181,8 +179,13 @@ mod tests {
     fn wrist_log(effects: PlantEffects, seed: u64, periods: usize) -> SimulatedLog {
         let arm = sim::RobotRigidBody::new(&robot());
         let plant = PlantParameters::default_robot();
-        let series =
-            FourierTrajectory::seeded_rest_to_rest(seed, &[0.0; 3], 5, 10.0, sim::cli::DEMO_LIMITS);
+        let series = ExcitationTrajectory::seeded_rest_to_rest(
+            seed,
+            &[0.0; 3],
+            5,
+            10.0,
+            sim::cli::DEMO_LIMITS,
+        );
         let tr = CommandedTrajectory::Fourier { series, periods };
         let mut cfg = SimulationConfig::new(6, 3);
         cfg.driven_joints = vec![3, 4, 5];

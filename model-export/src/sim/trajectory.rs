@@ -1,31 +1,8 @@
 //! Commanded trajectories the simulated robot follows: the excitation designer's Fourier
 //! coefficients (JSON) or a playback CSV (`t`, then `q`, `qd`, `qdd` of each joint).
+use crate::excite::trajectory::{ExcitationTrajectory, JointFourier};
 use anyhow::{Context, bail, ensure};
-use serde::{Deserialize, Serialize};
-use std::f64::consts::TAU;
 use std::path::Path;
-
-/// One joint's Fourier coefficients (the excitation designer's JSON field names).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct FourierJoint {
-    /// Offset `q_i0` [rad].
-    pub q0_rad: f64,
-    /// Sine coefficients `a_ik`, k = 1..N [rad].
-    pub a_rad: Vec<f64>,
-    /// Cosine coefficients `b_ik`, k = 1..N [rad].
-    pub b_rad: Vec<f64>,
-}
-
-/// `q_i(t) = q_i0 + sum_k a_ik sin(k w t) + b_ik cos(k w t)`, `w = 2 pi / period`.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct FourierTrajectory {
-    /// Period [s].
-    pub period_s: f64,
-    /// Number of harmonics N.
-    pub harmonics: usize,
-    /// Coefficients per moving joint.
-    pub joints: Vec<FourierJoint>,
-}
 
 /// A trajectory given as samples; evaluated between samples by quintic Hermite
 /// interpolation of (q, qd, qdd), which reproduces all three at the samples.
@@ -47,7 +24,7 @@ pub enum CommandedTrajectory {
     /// Fourier series, repeated for a number of periods.
     Fourier {
         /// The coefficients.
-        series: FourierTrajectory,
+        series: ExcitationTrajectory,
         /// How many periods to run.
         periods: usize,
     },
@@ -55,26 +32,8 @@ pub enum CommandedTrajectory {
     Playback(PlaybackTrajectory),
 }
 
-impl FourierTrajectory {
-    /// Evaluates q, qd, qdd of every joint at `t_s`.
-    pub fn eval_into(&self, t_s: f64, q: &mut [f64], qd: &mut [f64], qdd: &mut [f64]) {
-        let w0 = TAU / self.period_s;
-        for (j, jf) in self.joints.iter().enumerate() {
-            let (mut p, mut v, mut a) = (jf.q0_rad, 0.0, 0.0);
-            for k in 1..=self.harmonics {
-                let w = k as f64 * w0;
-                let (s, c) = (w * t_s).sin_cos();
-                let (ak, bk) = (jf.a_rad[k - 1], jf.b_rad[k - 1]);
-                p += ak * s + bk * c;
-                v += w * (ak * c - bk * s);
-                a -= w * w * (ak * s + bk * c);
-            }
-            q[j] = p;
-            qd[j] = v;
-            qdd[j] = a;
-        }
-    }
-
+/// The simulator's additions to the excitation designer's Fourier trajectory.
+impl ExcitationTrajectory {
     /// A seeded rest-to-rest trajectory (`q = q_rest`, `qd = qdd = 0` at `t = 0` and at
     /// every period, by construction: `a_1`, `b_1` and `q0` are solved from the other
     /// coefficients), scaled so `|q - q_rest| <= q_max`, `|qd| <= qd_max`, `|qdd| <= qdd_max`
@@ -98,13 +57,13 @@ impl FourierTrajectory {
             b[0] = -(2..=harmonics)
                 .map(|k| (k * k) as f64 * b[k - 1])
                 .sum::<f64>();
-            joints.push(FourierJoint {
+            joints.push(JointFourier {
                 q0_rad: 0.0,
                 a_rad: a,
                 b_rad: b,
             });
         }
-        let mut tr = FourierTrajectory {
+        let mut tr = ExcitationTrajectory {
             period_s,
             harmonics,
             joints,
@@ -382,30 +341,30 @@ pub fn excitation_layout(path: &Path) -> Option<(Vec<usize>, Vec<f64>)> {
     Some((moving, fixed))
 }
 
-fn find_fourier(v: &serde_json::Value) -> Option<FourierTrajectory> {
-    if let Ok(f) = serde_json::from_value::<FourierTrajectory>(v.clone()) {
+fn find_fourier(v: &serde_json::Value) -> Option<ExcitationTrajectory> {
+    if let Ok(f) = serde_json::from_value::<ExcitationTrajectory>(v.clone()) {
         return Some(f);
     }
     v.as_object()?
         .values()
-        .find_map(|inner| serde_json::from_value::<FourierTrajectory>(inner.clone()).ok())
+        .find_map(|inner| serde_json::from_value::<ExcitationTrajectory>(inner.clone()).ok())
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    fn series() -> FourierTrajectory {
-        FourierTrajectory {
+    fn series() -> ExcitationTrajectory {
+        ExcitationTrajectory {
             period_s: 4.0,
             harmonics: 2,
             joints: vec![
-                FourierJoint {
+                JointFourier {
                     q0_rad: 0.1,
                     a_rad: vec![0.2, -0.1],
                     b_rad: vec![0.05, 0.3],
                 },
-                FourierJoint {
+                JointFourier {
                     q0_rad: -0.2,
                     a_rad: vec![0.0, 0.4],
                     b_rad: vec![-0.1, 0.0],
