@@ -10,7 +10,7 @@ ME=${CARGO_TARGET_DIR:-target}/debug/model-export
 D=firmware/src/model
 $ME export --dims 9,64,64,3 --seed 1 --precision int16 --robot "$ROBOT" --budgets host-tests/budgets.toml --out $D/default_model.rs
 for p in f32 int16 int8; do
-  $ME export --dims 5,12,8,3 --seed 7 --preset custom --joints 0,1,2 --precision $p --self-check-steps 10000 --out $D/golden_$p.rs
+  $ME export --dims 5,12,8,3 --seed 7 --preset custom --joints 1,2,3 --precision $p --self-check-steps 10000 --out $D/golden_$p.rs
   $ME export --dims 9,64,64,3 --seed 2 --precision $p --robot "$ROBOT" --out $D/bench_paper_$p.rs
 done
-$ME export --dims 3,16,16,1 --seed 3 --joints 4 --precision int16 --out $D/bench_joint_int16.rs
+$ME export --dims 3,16,16,1 --seed 3 --joints 5 --precision int16 --out $D/bench_joint_int16.rs

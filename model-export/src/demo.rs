@@ -481,7 +481,7 @@ pub fn demo(a: &DemoArgs) -> Result<()> {
             s("--identified"),
             p(&identified),
             s("--joints"),
-            s("3,4,5"),
+            s("4,5,6"),
             s("--precision"),
             s("int16"),
             s("--budgets"),

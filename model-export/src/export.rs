@@ -1036,8 +1036,9 @@ pub mod cli {
         /// Feature preset of the seeded network (`paper`, `feedforward`, `custom`).
         #[arg(long, default_value = "paper")]
         pub preset: String,
-        /// Compensated joints (0-based indices).
-        #[arg(long, value_delimiter = ',', default_value = "3,4,5")]
+        /// Compensated joints, numbered from 1 like every other command's `--joints`
+        /// (the generated file's `JOINT_INDICES` are their 0-based indices).
+        #[arg(long, value_delimiter = ',', default_value = "4,5,6")]
         pub joints: Vec<usize>,
         /// Control rate [Hz].
         #[arg(long, default_value_t = 100)]
@@ -1064,7 +1065,8 @@ pub mod cli {
         #[arg(long, default_value_t = 1000)]
         pub self_check_steps: usize,
         /// CSV log (columns of the model's `paper` / `feedforward` preset for
-        /// `--joints`, named 1-based as `model-export torque --dataset` writes them): print per output, for every precision streamed over it, the RMS
+        /// `--joints`, as `model-export torque --dataset` writes them): print per output,
+        /// for every precision streamed over it, the RMS
         /// against the f32 firmware step and the compensated RMS against the targets
         /// beside f32's.
         #[arg(long)]
@@ -1093,6 +1095,17 @@ pub mod cli {
             })
     }
 
+    /// The 0-based indices of `--joints` (joint numbers start at 1).
+    fn joint_indices(a: &ExportArgs) -> Result<Vec<usize>> {
+        a.joints
+            .iter()
+            .map(|&j| match j {
+                0 => bail!("--joints: joint numbers start at 1 (got 0)"),
+                j => Ok(j - 1),
+            })
+            .collect()
+    }
+
     /// Builds the model to export.
     pub fn model(a: &ExportArgs) -> Result<LstmModel> {
         match &a.model {
@@ -1112,10 +1125,10 @@ pub mod cli {
                 );
                 m.preset = a.preset.clone();
                 // Feature names of the preset (1-based joint numbers), when the sizes fit it.
-                let numbers: Vec<usize> = a.joints.iter().map(|j| j + 1).collect();
+                joint_indices(a)?;
                 let spec = match a.preset.as_str() {
-                    "paper" => Some(crate::nn::data::FeatureSpec::paper(&numbers)),
-                    "feedforward" => Some(crate::nn::data::FeatureSpec::feedforward(&numbers)),
+                    "paper" => Some(crate::nn::data::FeatureSpec::paper(&a.joints)),
+                    "feedforward" => Some(crate::nn::data::FeatureSpec::feedforward(&a.joints)),
                     _ => None,
                 };
                 if let Some(spec) = spec.filter(|s| s.inputs.len() == i && s.targets.len() == o) {
@@ -1171,7 +1184,7 @@ pub mod cli {
         };
         let meta = ExportMeta {
             preset: m.preset.clone(),
-            joints: a.joints.clone(),
+            joints: joint_indices(a)?,
             control_rate_hz: a.control_rate_hz,
             self_check_steps: a.self_check_steps,
         };
@@ -1199,10 +1212,9 @@ pub mod cli {
         );
         if let Some(log) = &a.accuracy_log {
             let table = crate::nn::data::Table::read(log)?;
-            let numbers: Vec<usize> = a.joints.iter().map(|j| j + 1).collect();
             let spec = match m.preset.as_str() {
-                "paper" => crate::nn::data::FeatureSpec::paper(&numbers),
-                "feedforward" => crate::nn::data::FeatureSpec::feedforward(&numbers),
+                "paper" => crate::nn::data::FeatureSpec::paper(&a.joints),
+                "feedforward" => crate::nn::data::FeatureSpec::feedforward(&a.joints),
                 other => bail!(
                     "--accuracy-log needs a `paper` or `feedforward` model (this one: `{other}`)"
                 ),

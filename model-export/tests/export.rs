@@ -19,7 +19,7 @@ fn args(out: PathBuf, precision: Precision) -> ExportArgs {
         dims: vec![5, 12, 8, 3],
         seed: 7,
         preset: "custom".into(),
-        joints: vec![0, 1, 2],
+        joints: vec![1, 2, 3],
         control_rate_hz: 100,
         precision,
         robot: None,
@@ -133,6 +133,19 @@ fn scales_that_overflow_the_q_format_are_refused() {
     assert!(err.to_string().contains("overflows the Q3.12"), "{err}");
     // f32 has no Q format: the same weights export.
     assert!(Exported::new(&m, Precision::F32).is_ok());
+}
+
+#[test]
+fn joint_numbers_start_at_one() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let out = dir.path().join("model.rs");
+    let mut a = args(out.clone(), Precision::F32);
+    a.joints = vec![0, 1, 2];
+    let err = export::cli::model(&a)
+        .and_then(|m| export::cli::export(&m, &a))
+        .unwrap_err();
+    assert!(format!("{err:#}").contains("start at 1"), "{err:#}");
+    assert!(!out.exists());
 }
 
 #[test]
