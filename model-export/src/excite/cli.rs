@@ -51,9 +51,10 @@ pub struct ExciteArgs {
     /// How a candidate is scaled into the limits: one scale per joint or one for all joints.
     #[arg(long, value_enum, default_value_t = Repair::PerJoint)]
     pub repair: Repair,
-    /// Size of the random baseline: this many seeded random feasible trajectories of the same
-    /// family (every joint scaled onto its tightest limit), compared with the design in a
-    /// printed table (median and best); 0 skips it. Seeds derive from --seed.
+    /// Size of the random baselines: this many seeded random feasible trajectories of the
+    /// same family, once with every joint scaled onto its own tightest limit and once with one
+    /// scale for all joints, each compared with the design in a printed table (median and
+    /// best); 0 skips them. Seeds derive from --seed.
     #[arg(long, default_value_t = DEFAULT_BASELINE_COUNT)]
     pub baseline: usize,
     /// Samples per period when scoring a candidate during the search.
