@@ -327,8 +327,24 @@ fn evaluate_cmd(a: EvaluateArgs) -> Result<()> {
             s.len(),
             eval::markdown(&rows)
         );
+        let paper = (spec.preset == "paper")
+            .then(|| eval::beside_paper_markdown(&a.features.joints, &rows))
+            .flatten();
+        if let Some(t) = &paper {
+            println!("Beside the paper's Table 2 (Zhang et al. 2020, N m):\n{t}");
+        }
+        // The paper's figures for the same joints, beside ours.
+        let paper_rows: Option<Vec<serde_json::Value>> = paper.as_ref().map(|_| {
+            eval::PAPER_TABLE2
+                .iter()
+                .map(|(j, b, a, r)| {
+                    serde_json::json!({"joint": j, "rms_before": b, "rms_after": a, "reduction_pct": r})
+                })
+                .collect()
+        });
         reports.push(
-            serde_json::json!({"file": p.display().to_string(), "steps": s.len(), "outputs": rows}),
+            serde_json::json!({"file": p.display().to_string(), "steps": s.len(),
+            "outputs": rows, "paper_table2": paper_rows}),
         );
     }
     if let Some(r) = a.report {

@@ -86,13 +86,6 @@ const FAST: Variant = Variant {
 /// among the paper's 0.05 and 0.01 / 0.003 / 0.001 by validation loss).
 const DEMO_LR: &str = "0.003";
 
-/// The paper's Table 2 (uncompensated, compensated RMS [N m], reduction [%]), joints 4-6.
-const PAPER_TABLE2: [(usize, f64, f64, f64); 3] = [
-    (4, 3.61, 1.21, 66.5),
-    (5, 4.84, 1.02, 78.9),
-    (6, 6.10, 2.33, 61.8),
-];
-
 /// One executed stage: its command line and wall time.
 #[derive(Clone, Debug, serde::Serialize)]
 struct StageRecord {
@@ -718,7 +711,11 @@ impl Report {
             "| joint | paper uncompensated | paper compensated | paper reduction % | ours uncompensated | ours compensated, next-step output | reduction % | ours compensated, increment output | reduction % | persistence |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
         );
         let mut table2 = Vec::new();
-        for (((joint, pu, pc, pr), r), ri) in PAPER_TABLE2.iter().zip(&rows).zip(&rows_inc) {
+        for (((joint, pu, pc, pr), r), ri) in crate::nn::eval::PAPER_TABLE2
+            .iter()
+            .zip(&rows)
+            .zip(&rows_inc)
+        {
             let f = |k: &str| r[k].as_f64().unwrap_or(f64::NAN);
             let fi = |k: &str| ri[k].as_f64().unwrap_or(f64::NAN);
             let _ = writeln!(

@@ -68,3 +68,57 @@ pub fn markdown(rows: &[TargetEval]) -> String {
     }
     s
 }
+
+/// The paper's Table 2 (Zhang et al. 2020), wrist joints 4-6: (joint, RMS before,
+/// RMS after [N m], reduction [%]).
+pub const PAPER_TABLE2: [(usize, f64, f64, f64); 3] = [
+    (4, 3.61, 1.21, 66.5),
+    (5, 4.84, 1.02, 78.9),
+    (6, 6.10, 2.33, 61.8),
+];
+
+/// For the paper's wrist joints (4, 5, 6, in this order): a Markdown table of ours beside
+/// the paper's Table 2; `None` for other joints.
+pub fn beside_paper_markdown(joints: &[usize], rows: &[TargetEval]) -> Option<String> {
+    if joints != [4, 5, 6] || rows.len() != 3 {
+        return None;
+    }
+    let mut s = String::from(
+        "| joint | paper before | paper after | paper reduction % | ours before | ours after | ours reduction % | ours persistence |\n|---|---:|---:|---:|---:|---:|---:|---:|\n",
+    );
+    for ((j, pb, pa, pr), r) in PAPER_TABLE2.iter().zip(rows) {
+        let p = r
+            .rms_persistence
+            .map_or("-".to_string(), |v| format!("{v:.4}"));
+        s += &format!(
+            "| {j} | {pb:.2} | {pa:.2} | {pr:.1} | {:.4} | {:.4} | {:.1} | {p} |\n",
+            r.rms_before, r.rms_after, r.reduction_pct
+        );
+    }
+    Some(s)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn row(before: f64, after: f64) -> TargetEval {
+        TargetEval {
+            name: "y".into(),
+            rms_before: before,
+            rms_after: after,
+            reduction_pct: 100.0 * (1.0 - after / before),
+            rms_persistence: Some(0.5),
+        }
+    }
+
+    #[test]
+    fn the_paper_table_stands_beside_the_wrist_only() {
+        let rows = [row(2.0, 1.0), row(3.0, 1.5), row(4.0, 1.0)];
+        let t = beside_paper_markdown(&[4, 5, 6], &rows).expect("wrist");
+        assert_eq!(t.lines().count(), 5);
+        assert!(t.contains("| 5 | 4.84 | 1.02 | 78.9 | 3.0000 | 1.5000 | 50.0 | 0.5000 |"));
+        assert!(beside_paper_markdown(&[1, 2, 3], &rows).is_none());
+        assert!(beside_paper_markdown(&[4, 5, 6], &rows[..2]).is_none());
+    }
+}
