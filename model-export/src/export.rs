@@ -1124,7 +1124,8 @@ pub mod cli {
                     a.seed,
                 );
                 m.preset = a.preset.clone();
-                // Feature names of the preset (1-based joint numbers), when the sizes fit it.
+                // Feature names of the preset for the joint numbers (checked here), when
+                // the sizes fit it.
                 joint_indices(a)?;
                 let spec = match a.preset.as_str() {
                     "paper" => Some(crate::nn::data::FeatureSpec::paper(&a.joints)),
@@ -1142,7 +1143,11 @@ pub mod cli {
 
     /// Exports `m` to `a.out`; returns the exported network.
     pub fn export(m: &LstmModel, a: &ExportArgs) -> Result<Exported> {
-        if let Some(name) = m.output_names.iter().find(|n| n.ends_with("@0")) {
+        let increment = m
+            .output_names
+            .iter()
+            .find(|n| crate::nn::data::is_increment_name(n));
+        if let Some(name) = increment {
             bail!(
                 "the model predicts an increment over one of its inputs (output `{name}`, \
                  `train --paper-output increment`): fed forward in a drive it closes a \

@@ -301,6 +301,12 @@ fn presets_align_inputs_and_targets() {
     let inc = FeatureSpec::paper_increment(&[4]);
     assert_eq!(inc.inputs, FeatureSpec::paper(&[4]).inputs);
     assert_eq!(inc.output_names(), ["tau_meas_j4@+1-tau_meas_j4@0"]);
+    assert!(model_export::nn::data::is_increment_name(
+        &inc.output_names()[0]
+    ));
+    assert!(!model_export::nn::data::is_increment_name(
+        &FeatureSpec::paper(&[4]).output_names()[0]
+    ));
     let p = inc.sequence(&table).unwrap();
     assert_eq!(p.targets[0], vec![1.0]);
     assert_eq!(p.offset[0], vec![20.0]);

@@ -138,6 +138,12 @@ impl TargetSpec {
     }
 }
 
+/// Whether an output name (as [`TargetSpec::name`] writes it) is an increment over an
+/// input (`col@+k-minus@0`).
+pub fn is_increment_name(name: &str) -> bool {
+    name.ends_with("@0")
+}
+
 /// Which columns go in and what comes out.
 #[derive(Clone, Debug, PartialEq)]
 pub struct FeatureSpec {
