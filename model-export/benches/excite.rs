@@ -88,10 +88,6 @@ fn main() {
                 settings.rate_hz,
                 scaling,
             );
-            let tag = match scaling {
-                BaselineScaling::PerJoint => "per-joint",
-                BaselineScaling::Common => "common",
-            };
             for (name, opt, stats) in [
                 ("cond(W)", d.score.condition, random.condition()),
                 (
@@ -109,7 +105,7 @@ fn main() {
                     d.evaluations,
                     d.seconds,
                     name,
-                    tag,
+                    scaling.name(),
                     opt,
                     stats.median,
                     stats.best,

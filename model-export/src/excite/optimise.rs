@@ -346,6 +346,14 @@ impl BaselineScaling {
     /// Both, generous first.
     pub const ALL: [BaselineScaling; 2] = [BaselineScaling::PerJoint, BaselineScaling::Common];
 
+    /// Short name (`per-joint`, `common`).
+    pub fn name(self) -> &'static str {
+        match self {
+            BaselineScaling::PerJoint => "per-joint",
+            BaselineScaling::Common => "common",
+        }
+    }
+
     /// How the population was scaled, in words.
     pub fn describe(self) -> &'static str {
         match self {
