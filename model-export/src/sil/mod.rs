@@ -15,8 +15,8 @@ pub mod wrist;
 
 use firmware::control::{
     CascadeConfig, Compensator, CompensatorConfig, CurrentLoopConfig, DriveConfig, FaultFlags,
-    JointDrive, JointReference, JointState, NoPredictor, PredictorInput, SensorSample, StateLimits,
-    TorquePredictor,
+    JointDrive, JointReference, JointState, JointStateMessage, NoPredictor, PredictorInput,
+    SensorSample, StateLimits, TorquePredictor,
 };
 use plant::{JointPlant, JointPlantConfig, SingleJointLoad};
 use std::f64::consts::TAU;
@@ -285,6 +285,47 @@ pub fn run_single_joint(
         faults,
         pwm_ticks: n,
     })
+}
+
+/// The state bus between the joints' firmware instances (as over EtherCAT): the frames
+/// sent at one compensator tick travel as wire bytes and arrive at the next (one tick of
+/// latency), at every compensator but the sender's.
+#[derive(Debug, Default)]
+pub struct StateBus {
+    in_flight: Vec<[u8; JointStateMessage::WIRE_LEN]>,
+    sequence: u16,
+}
+
+impl StateBus {
+    /// Delivers the frames sent at the previous tick and opens a new tick (its sequence
+    /// number).
+    pub fn deliver<const J: usize, M: TorquePredictor<J>, L: TorquePredictor<J>>(
+        &mut self,
+        comps: &mut [Compensator<J, M, L>],
+    ) -> anyhow::Result<()> {
+        for frame in self.in_flight.drain(..) {
+            let msg = JointStateMessage::decode(&frame)
+                .ok_or_else(|| anyhow::anyhow!("corrupt frame"))?;
+            for (j, c) in comps.iter_mut().enumerate() {
+                if j != msg.joint as usize {
+                    c.receive(&msg);
+                }
+            }
+        }
+        self.sequence = self.sequence.wrapping_add(1);
+        Ok(())
+    }
+
+    /// Sends joint `joint`'s state of this tick.
+    pub fn send(&mut self, joint: usize, timestamp_us: u32, state: JointState) {
+        let msg = JointStateMessage {
+            joint: joint as u8,
+            sequence: self.sequence,
+            timestamp_us,
+            state,
+        };
+        self.in_flight.push(msg.encode());
+    }
 }
 
 #[cfg(test)]

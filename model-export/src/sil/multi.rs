@@ -10,8 +10,8 @@ use super::plant::{
 use super::{FeedforwardMode, Trajectory};
 use firmware::control::{
     Compensator, CompensatorConfig, DriveConfig, DriveOutput, FaultFlags, FeedforwardSource,
-    JointDrive, JointReference, JointState, JointStateMessage, NoPredictor, PredictorInput,
-    SensorSample, TorquePredictor,
+    JointDrive, JointReference, JointState, NoPredictor, PredictorInput, SensorSample,
+    TorquePredictor,
 };
 use nalgebra::{DMatrix, DVector};
 use rand::SeedableRng;
@@ -256,8 +256,7 @@ pub fn run_multi_joint<const J: usize>(
     let dt = 1.0 / (pwm_hz * substeps as f64);
     let mut duties = vec![[0.5f64; 3]; J];
     let mut last_out = vec![DriveOutput::default(); J];
-    let mut in_flight: Vec<[u8; JointStateMessage::WIRE_LEN]> = Vec::new();
-    let mut sequence = 0u16;
+    let mut bus = super::StateBus::default();
     let (mut se, mut siq) = ([0.0f64; J], [0.0f64; J]);
     let mut faults = [FaultFlags::NONE; J];
     let mut zero_ticks = [0u64; J];
@@ -265,17 +264,7 @@ pub fn run_multi_joint<const J: usize>(
     for k in 0..n {
         let t_tick = k as f64 / pwm_hz;
         if k % comp_every == 0 {
-            // Frames sent at the previous tick arrive now (one tick of latency).
-            for frame in in_flight.drain(..) {
-                let msg = JointStateMessage::decode(&frame)
-                    .ok_or_else(|| anyhow::anyhow!("corrupt frame"))?;
-                for (j, c) in comps.iter_mut().enumerate() {
-                    if j != msg.joint as usize {
-                        c.receive(&msg);
-                    }
-                }
-            }
-            sequence = sequence.wrapping_add(1);
+            bus.deliver(&mut comps)?;
             let t_mid = t_tick + 0.5 * comp_every as f64 / pwm_hz;
             for j in 0..J {
                 let (qa, qda, qdda) = setup.trajectories[j].at(t_mid);
@@ -294,13 +283,7 @@ pub fn run_multi_joint<const J: usize>(
                     faults[j] |= o.faults;
                 }
                 zero_ticks[j] += u64::from(o.source == FeedforwardSource::Zero);
-                let msg = JointStateMessage {
-                    joint: j as u8,
-                    sequence,
-                    timestamp_us: (t_tick * 1e6) as u32,
-                    state: own,
-                };
-                in_flight.push(msg.encode());
+                bus.send(j, (t_tick * 1e6) as u32, own);
             }
         }
         for j in 0..J {

@@ -24,8 +24,8 @@ use crate::sim::{self, CommandedTrajectory, DriveState, PlantEffects, PlantParam
 use anyhow::{Context, bail, ensure};
 use firmware::control::{
     CascadeConfig, Compensator, CompensatorConfig, CurrentLoopConfig, DriveConfig, DriveOutput,
-    FaultFlags, FeedforwardSource, JointDrive, JointReference, JointState, JointStateMessage,
-    LstmPredictor, NoPredictor, SensorSample, StateLimits, TorqueNetwork, TorquePredictor,
+    FaultFlags, FeedforwardSource, JointDrive, JointReference, JointState, LstmPredictor,
+    NoPredictor, SensorSample, StateLimits, TorqueNetwork, TorquePredictor,
 };
 use firmware::dynamics::RigidBodyModel;
 use firmware::model::FeaturePreset;
@@ -467,8 +467,7 @@ where
     let mut last_out = [DriveOutput::default(); J];
     let mut iq_sum = [0.0f64; J];
     let mut iq_count = 0u32;
-    let mut in_flight: Vec<[u8; JointStateMessage::WIRE_LEN]> = Vec::new();
-    let mut sequence = 0u16;
+    let mut bus = super::StateBus::default();
     let (mut se, mut max_e, mut siq) = ([0.0f64; J], [0.0f64; J], [0.0f64; J]);
     let mut faults = [FaultFlags::NONE; J];
     let mut sources = [[0u64; 3]; J];
@@ -486,17 +485,7 @@ where
     for k in 0..n {
         let t_tick = k as f64 / pwm_hz;
         if k % comp_every == 0 {
-            // Frames sent at the previous tick arrive now (one tick of latency).
-            for frame in in_flight.drain(..) {
-                let msg = JointStateMessage::decode(&frame)
-                    .ok_or_else(|| anyhow::anyhow!("corrupt frame"))?;
-                for (j, c) in comps.iter_mut().enumerate() {
-                    if j != msg.joint as usize {
-                        c.receive(&msg);
-                    }
-                }
-            }
-            sequence = sequence.wrapping_add(1);
+            bus.deliver(&mut comps)?;
             // The feedforward is held for one period: it is computed for the period's
             // middle (the reference is known ahead).
             let t_mid = t_tick + 0.5 * period_s;
@@ -521,13 +510,11 @@ where
                 }] += 1;
                 // The frame carries the references for the receivers' next tick and
                 // this tick's measurements.
-                let msg = JointStateMessage {
-                    joint: j as u8,
-                    sequence,
-                    timestamp_us: (t_tick * 1e6) as u32,
-                    state: state_at(t_mid + period_s, &last_out[j], tau_meas, j),
-                };
-                in_flight.push(msg.encode());
+                bus.send(
+                    j,
+                    (t_tick * 1e6) as u32,
+                    state_at(t_mid + period_s, &last_out[j], tau_meas, j),
+                );
             }
             iq_sum = [0.0; J];
             iq_count = 0;
