@@ -326,24 +326,15 @@ fn clarke(i: [f64; 3]) -> (f64, f64) {
 mod tests {
     use super::*;
 
+    /// The SIL's wrist-sized joint without sensor noise, ADC steps or encoder offset.
     pub(crate) fn config() -> JointPlantConfig {
         JointPlantConfig {
-            pole_pairs: 7,
-            phase_resistance_ohm: 0.3,
-            phase_inductance_h: 3e-4,
-            flux_linkage_wb: 0.01,
-            rotor_inertia_kg_m2: 3e-5,
-            gear_ratio: 100.0,
-            gear_efficiency: 1.0,
-            bus_v: 48.0,
-            pwm_hz: 20_000.0,
-            substeps: 10,
-            encoder_bits: 14,
             encoder_offset_rad: 0.0,
             current_noise_a: 0.0,
             current_lsb_a: 0.0,
             bus_noise_v: 0.0,
             seed: 1,
+            ..crate::sil::SingleJointSetup::wrist_joint(1000.0, 1).plant
         }
     }
 
