@@ -230,20 +230,6 @@ fn read_json(path: &Path) -> Result<Value> {
     serde_json::from_str(&text).with_context(|| format!("parsing {}", path.display()))
 }
 
-/// The columns of a simulated log for `identify` / `torque` (header row, torque columns).
-fn sim_layout() -> Vec<String> {
-    [
-        "--layout",
-        "torque",
-        "--header",
-        "yes",
-        "--torque-cols",
-        "20,21,22,23,24,25",
-    ]
-    .map(s)
-    .to_vec()
-}
-
 /// Runs the demo.
 pub fn demo(a: &DemoArgs) -> Result<()> {
     let v = if a.fast { FAST } else { FULL };
@@ -258,6 +244,9 @@ pub fn demo(a: &DemoArgs) -> Result<()> {
             .with_context(|| format!("creating {}", out.join(d).display()))?;
     }
     let robot = crate::sim::cli::DEFAULT_ROBOT;
+    // How `identify` and `torque` read the simulated logs.
+    let sim_layout =
+        crate::sim::SimulatedLog::reader_args(crate::sim::load_robot(Path::new(robot))?.dof());
     let mut pl = Pipeline {
         records: Vec::new(),
     };
@@ -356,7 +345,7 @@ pub fn demo(a: &DemoArgs) -> Result<()> {
         s("-o"),
         p(&identified),
     ];
-    args.extend(sim_layout());
+    args.extend(sim_layout.iter().cloned());
     pl.stage("identify", &args)?;
 
     // 4. Compensation datasets: every sample as logged, with the model's torque.
@@ -379,7 +368,7 @@ pub fn demo(a: &DemoArgs) -> Result<()> {
             s("-o"),
             p(&data.join(format!("{name}.csv"))),
         ];
-        args.extend(sim_layout());
+        args.extend(sim_layout.iter().cloned());
         pl.stage(&format!("dataset {name}"), &args)?;
     }
 

@@ -129,14 +129,8 @@ fn cli_simulate_identify_sil_writes_markdown_and_json() {
         &log,
     ])
     .unwrap();
-    let layout = [
-        "--layout",
-        "torque",
-        "--header",
-        "yes",
-        "--torque-cols",
-        "20,21,22,23,24,25",
-    ];
+    let layout = model_export::sim::SimulatedLog::reader_args(6);
+    let layout: Vec<&str> = layout.iter().map(String::as_str).collect();
     let mut id = vec![
         "identify",
         "--log",

@@ -102,6 +102,23 @@ impl SimulatedLog {
         h
     }
 
+    /// The arguments with which `identify` and `torque` read a log of `dof` joints like a
+    /// real robot's: header row, measured torque columns (1-based).
+    pub fn reader_args(dof: usize) -> Vec<String> {
+        let tau = GROUPS.iter().position(|(p, _)| *p == "tau").unwrap_or(0);
+        let cols: Vec<String> = (0..dof).map(|j| (2 + tau * dof + j).to_string()).collect();
+        [
+            "--layout",
+            "torque",
+            "--header",
+            "yes",
+            "--torque-cols",
+            &cols.join(","),
+        ]
+        .map(String::from)
+        .to_vec()
+    }
+
     /// Index of a column group (by prefix, e.g. `"tau"`), joint `j` 0-based.
     pub fn column(&self, prefix: &str, j: usize) -> Option<usize> {
         GROUPS
@@ -155,5 +172,27 @@ impl SimulatedLog {
         tmp.persist(path)
             .with_context(|| format!("{}: cannot rename into place", path.display()))?;
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn reader_args_name_the_measured_torque_columns() {
+        // t_s, q1..6, qd1..6, i1..6, then tau1..6 (columns 20-25, the README's layout).
+        assert_eq!(
+            SimulatedLog::reader_args(6),
+            [
+                "--layout",
+                "torque",
+                "--header",
+                "yes",
+                "--torque-cols",
+                "20,21,22,23,24,25"
+            ]
+        );
+        assert_eq!(SimulatedLog::reader_args(3)[5], "11,12,13");
     }
 }
