@@ -196,46 +196,16 @@ impl Shard {
         let rows = s.t_len * bs;
         // Input layer over every row at once: emb = tanh(x·W_inᵀ + b_in).
         let emb = &mut self.emb[..rows * e];
-        for r in emb.chunks_exact_mut(e) {
-            r.copy_from_slice(lay.get(p, B_IN));
-        }
-        sgemm(
-            rows,
-            i,
-            e,
-            1.0,
-            &self.x,
-            Op::N,
-            lay.get(p, W_IN),
-            Op::T,
-            1.0,
-            emb,
-        );
+        emb[..e].copy_from_slice(lay.get(p, B_IN));
+        affine_rows(emb, e, &self.x, lay.get(p, W_IN), i);
         tanh_in_place(emb);
         // Input projections for every step: acts = emb·W_ihᵀ + b_ih + b_hh.
         let acts = &mut self.acts[..rows * g4];
-        {
-            let (bi, bh) = (lay.get(p, B_IH), lay.get(p, B_HH));
-            let (first, rest) = acts.split_at_mut(g4);
-            for ((a, x), y) in first.iter_mut().zip(bi).zip(bh) {
-                *a = x + y;
-            }
-            for r in rest.chunks_exact_mut(g4) {
-                r.copy_from_slice(first);
-            }
+        let (bi, bh) = (lay.get(p, B_IH), lay.get(p, B_HH));
+        for ((a, x), y) in acts[..g4].iter_mut().zip(bi).zip(bh) {
+            *a = x + y;
         }
-        sgemm(
-            rows,
-            e,
-            g4,
-            1.0,
-            emb,
-            Op::N,
-            lay.get(p, W_IH),
-            Op::T,
-            1.0,
-            acts,
-        );
+        affine_rows(acts, g4, emb, lay.get(p, W_IH), e);
         // The recurrence.
         let w_hh = lay.get(p, W_HH);
         let blk = bs * h;
@@ -299,21 +269,8 @@ impl Shard {
         let tail = s.burn_in * blk;
         let loss_rows = (s.t_len - s.burn_in) * bs;
         let y = &mut self.y[..loss_rows * o];
-        for r in y.chunks_exact_mut(o) {
-            r.copy_from_slice(lay.get(p, B_OUT));
-        }
-        sgemm(
-            loss_rows,
-            h,
-            o,
-            1.0,
-            &self.hs[tail..],
-            Op::N,
-            lay.get(p, W_OUT),
-            Op::T,
-            1.0,
-            y,
-        );
+        y[..o].copy_from_slice(lay.get(p, B_OUT));
+        affine_rows(y, o, &self.hs[tail..], lay.get(p, W_OUT), h);
         self.sse = y
             .iter()
             .zip(&self.y_ref)
@@ -479,6 +436,17 @@ impl Shard {
         );
         col_sums(demb, e, lay.get_mut(grad, B_IN));
     }
+}
+
+/// A dense layer over many rows: `out[r] = bias + x[r]·wᵀ` for every row of `out`
+/// (`n` columns), where `bias` is what `out`'s first row holds on entry, `x` is
+/// `rows × k` and `w` is `n × k` (PyTorch's layout).
+fn affine_rows(out: &mut [f32], n: usize, x: &[f32], w: &[f32], k: usize) {
+    let (first, rest) = out.split_at_mut(n);
+    for r in rest.chunks_exact_mut(n) {
+        r.copy_from_slice(first);
+    }
+    sgemm(out.len() / n, k, n, 1.0, x, Op::N, w, Op::T, 1.0, out);
 }
 
 /// `out[j] = Σ_r m[r][j]` for a row-major matrix with `n` columns.
