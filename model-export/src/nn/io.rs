@@ -174,7 +174,37 @@ pub fn model_bytes(m: &LstmModel) -> Result<Vec<u8>> {
     ]
     .into_iter()
     .collect();
-    Ok(safetensors::serialize(views, Some(meta))?)
+    canonical_header(safetensors::serialize(views, Some(meta))?)
+}
+
+/// Rewrites a safetensors file's JSON header with its keys in sorted order (the crate
+/// writes its metadata map in hash order, which changes from run to run), so that the
+/// same model always gives the same bytes. The header stays padded with spaces to a
+/// multiple of 8 bytes; the tensor data, addressed relative to the header's end, is
+/// unchanged.
+fn canonical_header(bytes: Vec<u8>) -> Result<Vec<u8>> {
+    let len = bytes
+        .get(..8)
+        .and_then(|b| <[u8; 8]>::try_from(b).ok())
+        .map(u64::from_le_bytes)
+        .context("safetensors bytes without a header length")?;
+    let end = usize::try_from(len)
+        .ok()
+        .and_then(|n| n.checked_add(8))
+        .filter(|&e| e <= bytes.len())
+        .context("safetensors header longer than the bytes")?;
+    // serde_json's maps are ordered by key.
+    let header: serde_json::Value =
+        serde_json::from_slice(&bytes[8..end]).context("safetensors header is not JSON")?;
+    let mut text = serde_json::to_string(&header)?;
+    while !(8 + text.len()).is_multiple_of(8) {
+        text.push(' ');
+    }
+    let mut out = Vec::with_capacity(8 + text.len() + bytes.len() - end);
+    out.extend_from_slice(&(text.len() as u64).to_le_bytes());
+    out.extend_from_slice(text.as_bytes());
+    out.extend_from_slice(&bytes[end..]);
+    Ok(out)
 }
 
 /// Writes a model atomically (temp file in the same directory, then rename).
