@@ -43,6 +43,29 @@ pub fn sgemm(
     }
 }
 
+/// Panics unless `a`, `b` and `c` hold `m×k`, `k×n` and `m×n` elements: the check both
+/// backends make before any unsafe access.
+fn check_lengths(m: usize, k: usize, n: usize, a: &[f32], b: &[f32], c: &[f32]) {
+    assert!(
+        a.len() >= m * k && b.len() >= k * n && c.len() >= m * n,
+        "sgemm: operand too short"
+    );
+}
+
+/// Row and column strides of `op(a)` (`m×k`) and `op(b)` (`k×n`) over row-major storage:
+/// `[rsa, csa, rsb, csb]`.
+fn strides(m: usize, k: usize, n: usize, ta: Op, tb: Op) -> [isize; 4] {
+    let (rsa, csa) = match ta {
+        Op::N => (k as isize, 1),
+        Op::T => (1, m as isize),
+    };
+    let (rsb, csb) = match tb {
+        Op::N => (n as isize, 1),
+        Op::T => (1, k as isize),
+    };
+    [rsa, csa, rsb, csb]
+}
+
 /// [`sgemm`] on the `gemm` crate (same contract).
 #[allow(clippy::too_many_arguments)]
 pub fn sgemm_gemm(
@@ -57,10 +80,7 @@ pub fn sgemm_gemm(
     beta: f32,
     c: &mut [f32],
 ) {
-    assert!(
-        a.len() >= m * k && b.len() >= k * n && c.len() >= m * n,
-        "sgemm: operand too short"
-    );
+    check_lengths(m, k, n, a, b, c);
     if m == 0 || n == 0 {
         return;
     }
@@ -68,14 +88,7 @@ pub fn sgemm_gemm(
         c[..m * n].iter_mut().for_each(|x| *x *= beta);
         return;
     }
-    let (rsa, csa) = match ta {
-        Op::N => (k as isize, 1),
-        Op::T => (1, m as isize),
-    };
-    let (rsb, csb) = match tb {
-        Op::N => (n as isize, 1),
-        Op::T => (1, k as isize),
-    };
+    let [rsa, csa, rsb, csb] = strides(m, k, n, ta, tb);
     // SAFETY: as in `sgemm_mm`: the asserted lengths cover every addressed element and
     // `c` is exclusively borrowed. `gemm` computes dst = alpha·dst + beta·lhs·rhs (its
     // alpha/beta are swapped w.r.t. BLAS); `read_dst = false` ignores dst's old contents.
@@ -118,21 +131,11 @@ pub fn sgemm_mm(
     beta: f32,
     c: &mut [f32],
 ) {
-    assert!(
-        a.len() >= m * k && b.len() >= k * n && c.len() >= m * n,
-        "sgemm: operand too short"
-    );
+    check_lengths(m, k, n, a, b, c);
     if m == 0 || n == 0 {
         return;
     }
-    let (rsa, csa) = match ta {
-        Op::N => (k as isize, 1),
-        Op::T => (1, m as isize),
-    };
-    let (rsb, csb) = match tb {
-        Op::N => (n as isize, 1),
-        Op::T => (1, k as isize),
-    };
+    let [rsa, csa, rsb, csb] = strides(m, k, n, ta, tb);
     // SAFETY: the asserted lengths cover every element addressed by the strides above
     // (max index (m-1)*rs + (k-1)*cs < m*k for either layout, likewise for b and c),
     // and `c` is exclusively borrowed, so it does not alias `a` or `b`.
