@@ -1,6 +1,7 @@
 //! The loss curve (the paper's Figure 10) as an SVG.
 use super::train::History;
 use anyhow::{Result, anyhow};
+use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 use std::path::Path;
 
@@ -42,22 +43,13 @@ pub fn loss_curve(h: &History, path: &Path) -> Result<()> {
                 .map(|(k, y)| ((k + 1) as f64, *y))
                 .collect::<Vec<_>>()
         };
-        chart
-            .draw_series(LineSeries::new(series(&h.train), &BLUE))
-            .map_err(|e| anyhow!("{e}"))?
-            .label("training")
-            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE));
-        chart
-            .draw_series(LineSeries::new(series(&h.val), &RED))
-            .map_err(|e| anyhow!("{e}"))?
-            .label("validation")
-            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RED));
-        chart
-            .configure_series_labels()
-            .border_style(BLACK)
-            .background_style(WHITE)
-            .draw()
-            .map_err(|e| anyhow!("{e}"))?;
+        draw_lines(
+            &mut chart,
+            [
+                (series(&h.train), BLUE, "training"),
+                (series(&h.val), RED, "validation"),
+            ],
+        )?;
         root.present().map_err(|e| anyhow!("{e}"))?;
     }
     crate::nn::write_atomic(path, svg.as_bytes())
@@ -130,27 +122,39 @@ pub fn compensation_figures(
                     .y_desc("torque [N m]")
                     .draw()
                     .map_err(|e| anyhow!("{e}"))?;
-                for (data, colour, label) in [
-                    (measured, BLACK, "measured"),
-                    (predicted, BLUE, "predicted"),
-                    (error, RED, "error"),
-                ] {
-                    chart
-                        .draw_series(LineSeries::new(data, &colour))
-                        .map_err(|e| anyhow!("{e}"))?
-                        .label(label)
-                        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], colour));
-                }
-                chart
-                    .configure_series_labels()
-                    .border_style(BLACK)
-                    .background_style(WHITE)
-                    .draw()
-                    .map_err(|e| anyhow!("{e}"))?;
+                draw_lines(
+                    &mut chart,
+                    [
+                        (measured, BLACK, "measured"),
+                        (predicted, BLUE, "predicted"),
+                        (error, RED, "error"),
+                    ],
+                )?;
             }
             root.present().map_err(|e| anyhow!("{e}"))?;
         }
         crate::nn::write_atomic(&dir.join(file), svg.as_bytes())?;
     }
+    Ok(())
+}
+
+/// Draws each `(points, colour, label)` as a line with a legend entry, then the legend.
+fn draw_lines<'a, 'b: 'a>(
+    chart: &mut ChartContext<'a, SVGBackend<'b>, Cartesian2d<RangedCoordf64, RangedCoordf64>>,
+    lines: impl IntoIterator<Item = (Vec<(f64, f64)>, RGBColor, &'static str)>,
+) -> Result<()> {
+    for (data, colour, label) in lines {
+        chart
+            .draw_series(LineSeries::new(data, &colour))
+            .map_err(|e| anyhow!("{e}"))?
+            .label(label)
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], colour));
+    }
+    chart
+        .configure_series_labels()
+        .border_style(BLACK)
+        .background_style(WHITE)
+        .draw()
+        .map_err(|e| anyhow!("{e}"))?;
     Ok(())
 }
