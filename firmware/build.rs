@@ -1,8 +1,38 @@
-//! Adds `-Tdefmt.x` to the target binaries' link only when the `defmt` feature is on.
+//! Writes the activation tables (`quant::act`) to `OUT_DIR`, selects the DSP assembly, the
+//! compiled-in model, and adds `-Tdefmt.x` to the target binaries' link only when the
+//! `defmt` feature is on.
 //! (`-Tlink.x` is in `.cargo/config.toml` for the thumb target; the board's memory
 //! layout is the root `memory.x`, which the linker finds in the workspace root.)
+/// Entries of each activation table (`quant::act::TABLE_LEN`).
+const TABLE_LEN: i32 = 8192;
+
+/// `round(f((k - 4096 + 0.5) / 512) * 32768)` clamped to `lo..=32767`, `k = 0..8192`: the
+/// value at each interval's midpoint, by `libm` (the same bits on every build machine).
+fn table(f: fn(f64) -> f64, lo: i32) -> String {
+    let mut s = String::from("[");
+    for k in 0..TABLE_LEN {
+        let x = (k - TABLE_LEN / 2) as f64 / 512.0 + 1.0 / 1024.0;
+        let v = (libm::round(f(x) * 32768.0) as i32).clamp(lo, 32767);
+        s.push_str(&v.to_string());
+        s.push(',');
+    }
+    s.push(']');
+    s
+}
+
 fn main() {
     println!("cargo:rerun-if-changed=build.rs");
+    let out = std::env::var("OUT_DIR").unwrap_or_default();
+    let sigmoid = |x: f64| 1.0 / (1.0 + libm::exp(-x));
+    let tables = format!(
+        "/// [sigmoid, tanh], see `quant::act`.\npub static ACT_TABLES: [[i16; {TABLE_LEN}]; 2] = [{}, {}];\n",
+        table(sigmoid, 0),
+        table(libm::tanh, -32767)
+    );
+    if let Err(e) = std::fs::write(std::path::Path::new(&out).join("act_tables.rs"), tables) {
+        println!("cargo:warning=act_tables.rs: {e}");
+        std::process::exit(1)
+    }
     // `cfg(fw_dsp_asm)`: the Armv7E-M / Armv8-M Mainline DSP extension is there, so
     // `dsp.rs` uses its SMLAD assembly (stable Rust has no `target_feature = "dsp"`).
     println!("cargo::rustc-check-cfg=cfg(fw_dsp_asm)");

@@ -7,7 +7,9 @@
 //! int16 loop (LDRD + 2 LDM + 8 SMLAD per quad, 8 quads per iteration), 3.44 in the
 //! f32 loop (VLDM of 8 inputs and 2 x 16 weights, VMUL + VADD, 8 columns per
 //! iteration); the single-block kernels ([`dot4_i16`], [`dot4_i8`], [`dot4_f32`])
-//! serve the small layers. VMLA/VFMA are not used: the M4 takes 3 cycles for them
+//! serve the small layers. [`lstm_small_i16`] runs a small int16 network's input
+//! layer, gates and cell updates in one unrolled block with `[e; h]` held in FPU
+//! registers (its portable twin is `quant::QuantView::step`). VMLA/VFMA are not used: the M4 takes 3 cycles for them
 //! against 2 for VMUL + VADD, and the separate rounding keeps the bits of the plain
 //! Rust sum. Every kernel has a portable twin in plain Rust with the same wrapping
 //! (integer) or rounding (f32) semantics; the host (and any target without the DSP
@@ -193,6 +195,94 @@ pub fn matvec4_f32(out: &mut [[f32; 4]], w: &[[f32; 4]], x: &[f32]) {
     #[cfg(not(fw_dsp_asm))]
     {
         portable::matvec4_f32(&mut out[..blocks], w, x)
+    }
+}
+
+/// Largest `[e; h]` (quads) of [`lstm_small_i16`]: 16 words, held in s0-s15.
+pub const SMALL_MAX_Z_QUADS: usize = 8;
+/// Largest input (quads) of [`lstm_small_i16`]: 4 words, held in s20-s23.
+pub const SMALL_MAX_INPUT_QUADS: usize = 2;
+
+/// One step of a small int16 network except the input quantisation and the f32
+/// de-normalisation (everything of `quant::QuantView::step` in between, with the same
+/// bits) in one assembly block, on the Cortex-M4: `xq` the quantised input,
+/// `in_w`/`in_bias`/`gate_w`/`gate_bias`/`out_w` the network's arrays (`EB * IQ`,
+/// `H * ZQ` and `HQ` quads), `state` advanced in place (the new `h` in `state.z[EB..]`,
+/// the new `c`; the `e` part of `z` and `acc` are not written). Returns the output
+/// rows' accumulators (rows `O..4` zero), or `None` (nothing written) when the sizes
+/// are beyond [`SMALL_MAX_Z_QUADS`] / [`SMALL_MAX_INPUT_QUADS`] / 4 outputs or a slice
+/// is short, and always on targets without the DSP extension.
+///
+/// Per cell (block `j` of rows `i, f, g, o`): the bias by one LDM, then per quad of
+/// `[e; h]` one LDM of its 8 weight words and 8 SMLAD, the input words moved from
+/// s0-s15 by VMOV (about 1.19 estimated cycles per MAC), then the cell update of
+/// `quant::cell_update` (4 SSAT + LDRSH activations, SMULBB, SMULWB, QDADD, the
+/// tanh of `c`, the new `h` stored as one halfword), 19 instructions. Unrolled over
+/// cells and quads by the assembler (`.irp`, `.if` on the const sizes), with the
+/// index shifts of `F` as immediates. The output rows read their weight words by
+/// immediate offsets (no work for the padding rows).
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+pub fn lstm_small_i16<
+    F: crate::quant::QuantFormat,
+    const IQ: usize,
+    const EB: usize,
+    const H: usize,
+    const ZQ: usize,
+    const O: usize,
+>(
+    xq: &[[u32; 2]; IQ],
+    in_w: &[[[u32; 4]; 2]],
+    in_bias: &[[i32; 4]; EB],
+    gate_w: &[[[u32; 4]; 2]],
+    gate_bias: &[[i32; 4]; H],
+    out_w: &[[[u32; 4]; 2]],
+    state: &mut crate::quant::QuantState<ZQ, H>,
+) -> Option<[i32; 4]> {
+    let fits = IQ >= 1
+        && IQ <= SMALL_MAX_INPUT_QUADS
+        && ZQ <= SMALL_MAX_Z_QUADS
+        && ZQ == EB + H / 4
+        && H.is_multiple_of(4)
+        && O <= 4
+        && in_w.len() >= EB * IQ
+        && gate_w.len() >= H * ZQ
+        && out_w.len() >= H / 4;
+    if !fits {
+        return None;
+    }
+    #[cfg(fw_dsp_asm)]
+    {
+        use crate::quant::act::{ACT_TABLES, SIGMOID, TABLE_LEN, TANH};
+        let mid = |f: usize| {
+            ACT_TABLES.get(f).map_or(core::ptr::null(), |t| {
+                t.as_ptr().wrapping_add(TABLE_LEN / 2)
+            }) as usize
+        };
+        let args: [usize; 9] = [
+            xq.as_ptr() as usize,
+            in_w.as_ptr() as usize,
+            in_bias.as_ptr() as usize,
+            gate_w.as_ptr() as usize,
+            gate_bias.as_ptr() as usize,
+            state as *mut crate::quant::QuantState<ZQ, H> as usize,
+            mid(SIGMOID),
+            mid(TANH),
+            out_w.as_ptr() as usize,
+        ];
+        // SAFETY: sizes checked above: the block reads 2 * IQ words of `xq`, EB * IQ
+        // quads of `in_w`, EB biases, H * ZQ quads of `gate_w`, H biases, the first
+        // O rows of H / 4 quads of `out_w`, both activation tables within their 8192
+        // entries (indices saturate to -4096..=4095 around the middle), reads the h
+        // words and reads and writes the c words and h halfwords of `state`
+        // (`repr(C)`: z at 0, c at 8 * ZQ); it writes only the declared registers,
+        // r6/r7 (saved and restored on the stack) and the flags.
+        Some(unsafe { asm::lstm_small_i16::<F, IQ, EB, H, ZQ, O>(&args) })
+    }
+    #[cfg(not(fw_dsp_asm))]
+    {
+        let _ = (xq, in_bias, gate_bias, state);
+        None
     }
 }
 
@@ -658,6 +748,256 @@ mod asm {
                 k = out(reg) _,
             );
         }
+    }
+
+    /// One input-layer block `b` of [`lstm_small_i16`]: bias, IQ quads, 4 tanh, the
+    /// packed e pair into `$s0, $s1`.
+    macro_rules! small_in_block {
+        ($b:literal, $s0:literal, $s1:literal) => {
+            concat!(
+                ".if {eb} > ",
+                $b,
+                "\n",
+                "vmov r12, s19\n",
+                "ldm r12!, {{r0, r1, r2, r3}}\n",
+                "vmov s19, r12\n",
+                "ldm lr!, {{r4, r5, r6, r7, r8, r9, r10, r11}}\n",
+                "vmov r12, s20\n",
+                "smlad r0, r4, r12, r0\n",
+                "smlad r1, r5, r12, r1\n",
+                "smlad r2, r6, r12, r2\n",
+                "smlad r3, r7, r12, r3\n",
+                "vmov r12, s21\n",
+                "smlad r0, r8, r12, r0\n",
+                "smlad r1, r9, r12, r1\n",
+                "smlad r2, r10, r12, r2\n",
+                "smlad r3, r11, r12, r3\n",
+                ".if {iq} > 1\n",
+                "ldm lr!, {{r4, r5, r6, r7, r8, r9, r10, r11}}\n",
+                "vmov r12, s22\n",
+                "smlad r0, r4, r12, r0\n",
+                "smlad r1, r5, r12, r1\n",
+                "smlad r2, r6, r12, r2\n",
+                "smlad r3, r7, r12, r3\n",
+                "vmov r12, s23\n",
+                "smlad r0, r8, r12, r0\n",
+                "smlad r1, r9, r12, r1\n",
+                "smlad r2, r10, r12, r2\n",
+                "smlad r3, r11, r12, r3\n",
+                ".endif\n",
+                "vmov r4, s17\n",
+                "ssat r0, #13, r0, asr #{si}\n",
+                "ssat r1, #13, r1, asr #{si}\n",
+                "ssat r2, #13, r2, asr #{si}\n",
+                "ssat r3, #13, r3, asr #{si}\n",
+                "ldrsh r0, [r4, r0, lsl #1]\n",
+                "ldrsh r1, [r4, r1, lsl #1]\n",
+                "ldrsh r2, [r4, r2, lsl #1]\n",
+                "ldrsh r3, [r4, r3, lsl #1]\n",
+                "pkhbt r0, r0, r1, lsl #16\n",
+                "pkhbt r2, r2, r3, lsl #16\n",
+                "vmov ",
+                $s0,
+                ", ",
+                $s1,
+                ", r0, r2\n",
+                ".endif\n",
+            )
+        };
+    }
+
+    /// One quad `p` of `[e; h]` (words in `$sa`, `$sb`) of a gate block of
+    /// [`lstm_small_i16`]: one LDM of 8 weight words, 8 SMLAD.
+    macro_rules! small_gate_quad {
+        ($p:literal, $sa:literal, $sb:literal) => {
+            concat!(
+                ".if {zq} > ",
+                $p,
+                "\n",
+                "ldm lr!, {{r4, r5, r6, r7, r8, r9, r10, r11}}\n",
+                "vmov r12, ",
+                $sa,
+                "\n",
+                "smlad r0, r4, r12, r0\n",
+                "smlad r1, r5, r12, r1\n",
+                "smlad r2, r6, r12, r2\n",
+                "smlad r3, r7, r12, r3\n",
+                "vmov r12, ",
+                $sb,
+                "\n",
+                "smlad r0, r8, r12, r0\n",
+                "smlad r1, r9, r12, r1\n",
+                "smlad r2, r10, r12, r2\n",
+                "smlad r3, r11, r12, r3\n",
+                ".endif\n",
+            )
+        };
+    }
+
+    /// One quad `q` of the output rows `r < O` of [`lstm_small_i16`]: the two h words
+    /// by LDRD from the state (r6), each row's two weight words by LDR (lr + offset).
+    macro_rules! small_out_row {
+        ($r:literal, $acc:literal) => {
+            concat!(
+                ".if {o} > ",
+                $r,
+                "\n",
+                "ldr r8, [lr, #(32 * \\q + 4 * ",
+                $r,
+                ")]\n",
+                "smlad ",
+                $acc,
+                ", r8, r4, ",
+                $acc,
+                "\n",
+                "ldr r9, [lr, #(32 * \\q + 16 + 4 * ",
+                $r,
+                ")]\n",
+                "smlad ",
+                $acc,
+                ", r9, r5, ",
+                $acc,
+                "\n",
+                ".endif\n",
+            )
+        };
+    }
+
+    /// The fused small int16 network step, see [`super::lstm_small_i16`]. `args` =
+    /// `[xq, in_w, in_bias, gate_w, gate_bias, state, sigmoid mid, tanh mid, out_w]`.
+    /// Registers: accumulators r0-r3, weights r4-r11, the input word r12, the weight
+    /// pointer lr; s0-s15 `[e; h]`, s16/s17 the table middles, s18 the state, s19/s25
+    /// the bias pointers, s20-s23 the input words, s24 the gate weights, s26 the
+    /// output weights. Returns the output accumulators.
+    ///
+    /// # Safety
+    /// `args` as documented, each pointer valid for what the wrapper's SAFETY note lists.
+    #[inline(always)]
+    pub unsafe fn lstm_small_i16<
+        F: crate::quant::QuantFormat,
+        const IQ: usize,
+        const EB: usize,
+        const H: usize,
+        const ZQ: usize,
+        const O: usize,
+    >(
+        args: &[usize; 9],
+    ) -> [i32; 4] {
+        let (a0, a1, a2, a3): (i32, i32, i32, i32);
+        // SAFETY (caller: pointers valid as documented): see the wrapper.
+        unsafe {
+            asm!(
+                "push {{r6, r7}}",
+                "ldr r1, [r0, #32]",
+                "vmov s26, r1",
+                "ldm r0, {{r1, r2, r3, r4, r5, r6, r8, r9}}",
+                "vmov s16, s17, r8, r9",
+                "vmov s18, s19, r6, r3",
+                "vmov s24, s25, r4, r5",
+                "vldmia r1, {{s20-s{xl}}}",
+                "add r1, r6, #{h_base}",
+                "vldmia r1, {{s{h0}-s{h1}}}",
+                "mov lr, r2",
+                small_in_block!("0", "s0", "s1"),
+                small_in_block!("1", "s2", "s3"),
+                small_in_block!("2", "s4", "s5"),
+                small_in_block!("3", "s6", "s7"),
+                small_in_block!("4", "s8", "s9"),
+                small_in_block!("5", "s10", "s11"),
+                small_in_block!("6", "s12", "s13"),
+                small_in_block!("7", "s14", "s15"),
+                "vmov lr, s24",
+                ".irp j, 0,1,2,3,4,5,6,7,8,9,10,11,12,13,14,15,16,17,18,19,20,21,22,23,24,25,26,27,28,29,30,31",
+                ".if \\j < {h}",
+                "vmov r12, s25",
+                "ldm r12!, {{r0, r1, r2, r3}}",
+                "vmov s25, r12",
+                small_gate_quad!("0", "s0", "s1"),
+                small_gate_quad!("1", "s2", "s3"),
+                small_gate_quad!("2", "s4", "s5"),
+                small_gate_quad!("3", "s6", "s7"),
+                small_gate_quad!("4", "s8", "s9"),
+                small_gate_quad!("5", "s10", "s11"),
+                small_gate_quad!("6", "s12", "s13"),
+                small_gate_quad!("7", "s14", "s15"),
+                "vmov r4, r5, s16, s17",
+                "vmov r6, s18",
+                "ssat r0, #13, r0, asr #{s0}",
+                "ssat r1, #13, r1, asr #{s1}",
+                "ssat r2, #13, r2, asr #{s2}",
+                "ssat r3, #13, r3, asr #{s3}",
+                "ldrsh r0, [r4, r0, lsl #1]",
+                "ldrsh r1, [r4, r1, lsl #1]",
+                "ldrsh r2, [r5, r2, lsl #1]",
+                "ldrsh r3, [r4, r3, lsl #1]",
+                "smulbb r0, r0, r2",
+                "ldr r8, [r6, #({c_off} + 4 * \\j)]",
+                "smulwb r9, r8, r1",
+                "asr r0, r0, #9",
+                "qdadd r8, r0, r9",
+                "str r8, [r6, #({c_off} + 4 * \\j)]",
+                "ssat r9, #13, r8, asr #{ct}",
+                "ldrsh r9, [r5, r9, lsl #1]",
+                "smulbb r3, r3, r9",
+                "asr r3, r3, #15",
+                "strh r3, [r6, #({h_base} + 2 * \\j)]",
+                ".endif",
+                ".endr",
+                "vmov r6, s18",
+                "vmov lr, s26",
+                "movs r0, #0",
+                "movs r1, #0",
+                "movs r2, #0",
+                "movs r3, #0",
+                ".irp q, 0,1,2,3,4,5,6,7",
+                ".if \\q < {hq}",
+                "ldrd r4, r5, [r6, #({h_base} + 8 * \\q)]",
+                small_out_row!("0", "r0"),
+                small_out_row!("1", "r1"),
+                small_out_row!("2", "r2"),
+                small_out_row!("3", "r3"),
+                ".endif",
+                ".endr",
+                "pop {{r6, r7}}",
+                eb = const EB,
+                iq = const IQ,
+                zq = const ZQ,
+                h = const H,
+                hq = const H / 4,
+                o = const O,
+                xl = const 20 + 2 * IQ - 1,
+                h_base = const 8 * EB,
+                h0 = const 2 * EB,
+                h1 = const 2 * ZQ - 1,
+                c_off = const 8 * ZQ,
+                si = const F::INPUT_SHIFT,
+                s0 = const F::GATE_SHIFTS[0],
+                s1 = const F::GATE_SHIFTS[1],
+                s2 = const F::GATE_SHIFTS[2],
+                s3 = const F::GATE_SHIFTS[3],
+                ct = const crate::quant::CELL_TANH_SHIFT,
+                inout("r0") args.as_ptr() => a0,
+                out("r1") a1,
+                out("r2") a2,
+                out("r3") a3,
+                out("r4") _,
+                out("r5") _,
+                out("r8") _,
+                out("r9") _,
+                out("r10") _,
+                out("r11") _,
+                out("r12") _,
+                out("lr") _,
+                out("s0") _, out("s1") _, out("s2") _, out("s3") _,
+                out("s4") _, out("s5") _, out("s6") _, out("s7") _,
+                out("s8") _, out("s9") _, out("s10") _, out("s11") _,
+                out("s12") _, out("s13") _, out("s14") _, out("s15") _,
+                out("s16") _, out("s17") _, out("s18") _, out("s19") _,
+                out("s20") _, out("s21") _, out("s22") _, out("s23") _,
+                out("s24") _, out("s25") _, out("s26") _,
+            );
+        }
+        [a0, a1, a2, a3]
     }
 
     /// SXTB16 + SMLAD over 4 interleaved rows, four columns per loop iteration.

@@ -12,14 +12,14 @@ use crate::nn::model::LstmModel;
 use anyhow::{Result, bail};
 use firmware::dynamics::RigidBodyModel;
 use firmware::quant::{
-    F32Dims, F32View, I8Weights, I16Weights, PRE_FRAC_BITS, QuantDims, QuantView, Requant,
-    WeightFormat,
+    ACT_FRAC_BITS, F32Dims, F32View, I8Weights, I16Weights, INPUT_FRAC_BITS, QuantDims, QuantView,
+    WeightFormat, act,
 };
 use sha2::{Digest, Sha256};
 use std::fmt::Write as _;
 
 /// Version of the generated file's layout; bump on incompatible changes.
-pub const SCHEMA_VERSION: u32 = 1;
+pub const SCHEMA_VERSION: u32 = 2;
 
 /// Numeric precision of an exported network.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -58,20 +58,22 @@ pub enum ExportError {
         /// The value.
         value: f32,
     },
-    /// A row's scale does not fit the fixed-point requantisation.
+    /// No power-of-two weight scale fits a layer (or gate) into the Q format.
     #[error(
-        "layer `{layer}` row {row}: scale {scale:e} overflows the Q3.12 pre-activation format \
-         (needs a shift of {shift} after the high word, allowed 0..=31, i.e. 2^-64 <= scale < 2^-1); the weights are too large or too small"
+        "layer `{layer}`: weights up to {max_abs:e} (bias up to {max_bias:e}) overflow the Q \
+         format: no power-of-two scale 2^-P with P >= {p_min} keeps every weight within the \
+         format and every accumulator below 2^31 (a smaller P would put the activation \
+         index shift outside 1..=31); the weights are too large"
     )]
     ScaleOverflow {
-        /// Layer name.
+        /// Layer name (`input`, `lstm gate i`, ...).
         layer: &'static str,
-        /// Row.
-        row: usize,
-        /// Real value of one accumulator unit in Q3.12 units.
-        scale: f64,
-        /// The shift it would need.
-        shift: i64,
+        /// Largest weight magnitude.
+        max_abs: f64,
+        /// Largest bias magnitude.
+        max_bias: f64,
+        /// Smallest exponent the index shift allows.
+        p_min: i32,
     },
     /// A standard deviation is not positive.
     #[error("tensor `{tensor}` element {index} is {value}: standard deviations must be > 0")]
@@ -179,16 +181,6 @@ fn layers(m: &LstmModel, in_cols: usize) -> Layers {
     }
 }
 
-/// Per-row quantisation summary (for reports).
-#[derive(Clone, Debug, Default)]
-pub struct RowStats {
-    /// Rows whose scale was enlarged beyond `max|w| / MAX_WEIGHT` so that no
-    /// accumulator can overflow.
-    pub rows_widened: usize,
-    /// Rows in total.
-    pub rows: usize,
-}
-
 /// An integer network in the kernel layout, with run-time sizes.
 #[derive(Clone, Debug)]
 pub struct QuantNet<F: WeightFormat> {
@@ -202,127 +194,126 @@ pub struct QuantNet<F: WeightFormat> {
     pub in_w: Vec<F::Quad>,
     /// Input bias.
     pub in_bias: Vec<[i32; 4]>,
-    /// Input requantisation.
-    pub in_requant: Vec<[Requant; 4]>,
+    /// Activation-index shift of the input layer.
+    pub in_shift: u32,
     /// Gates.
     pub gate_w: Vec<F::Quad>,
     /// Gate bias.
     pub gate_bias: Vec<[i32; 4]>,
-    /// Gate requantisation.
-    pub gate_requant: Vec<[Requant; 4]>,
+    /// Activation-index shifts of the gates `i, f, g, o`.
+    pub gate_shift: [u32; 4],
     /// Output layer.
     pub out_w: Vec<F::Quad>,
     /// Output scale.
     pub out_scale: Vec<[f32; 4]>,
     /// Output offset.
     pub out_offset: Vec<[f32; 4]>,
-    /// Quantisation summary.
-    pub stats: RowStats,
 }
 
 const ACC_LIMIT: f64 = 2_147_483_647.0;
 
-/// Quantises one row; returns the integer weights, the bias in accumulator scale and
-/// the row scale `s` (`w ~ s * w_q`). `x_frac`: fraction bits of the row's input.
-fn quantise_row(
-    w: &[f64],
-    b: f64,
-    max_w: i32,
-    x_frac: u32,
-    with_bias: bool,
-) -> (Vec<i32>, i32, f64, bool) {
-    let maxabs = w.iter().fold(0.0f64, |a, x| a.max(x.abs()));
-    let xs = (1u64 << x_frac) as f64;
-    let b_eff = if with_bias { b.abs() } else { 0.0 };
-    let mut s = (maxabs / max_w as f64).max(b_eff * xs / (1u64 << 29) as f64);
-    if s == 0.0 {
-        return (vec![0; w.len()], 0, 0.0, false);
+/// Largest `sum_k |w_q[k]| * 32768 + |b_q|` of `rows` at exponent `p` (weights
+/// `round(w 2^p)`, bias `round(b 2^(p + x_frac))`), or `None` when a weight leaves
+/// `+-max_w`.
+fn worst_accumulator(rows: &[(&[f64], f64)], p: i32, x_frac: u32, max_w: i32) -> Option<f64> {
+    let mut worst = 0.0f64;
+    for (w, b) in rows {
+        let mut sum = (b * 2f64.powi(p + x_frac as i32)).round().abs();
+        for x in w.iter() {
+            let q = (x * 2f64.powi(p)).round();
+            if q.abs() > max_w as f64 {
+                return None;
+            }
+            sum += q.abs() * 32768.0;
+        }
+        worst = worst.max(sum);
     }
-    let mut widened = false;
-    for _ in 0..64 {
+    Some(worst)
+}
+
+/// The power-of-two exponent `P` of a group of rows sharing one scale (`w ~ w_q 2^-P`):
+/// the largest for which every weight fits `+-max_w` and no accumulator can reach 2^31
+/// for any input, with the activation-index shift `P + x_frac - 9` in `1..=31`.
+fn group_exponent(
+    layer: &'static str,
+    rows: &[(&[f64], f64)],
+    x_frac: u32,
+    max_w: i32,
+) -> Result<i32, ExportError> {
+    let grid = act::GRID_FRAC_BITS as i32;
+    let (p_min, p_max) = (1 + grid - x_frac as i32, 31 + grid - x_frac as i32);
+    (p_min..=p_max)
+        .rev()
+        .find(|&p| worst_accumulator(rows, p, x_frac, max_w).is_some_and(|a| a < ACC_LIMIT))
+        .ok_or_else(|| {
+            let fold = |f: fn(&(&[f64], f64)) -> f64| rows.iter().map(f).fold(0.0, f64::max);
+            ExportError::ScaleOverflow {
+                layer,
+                max_abs: fold(|(w, _)| w.iter().fold(0.0f64, |a, x| a.max(x.abs()))),
+                max_bias: fold(|(_, b)| b.abs()),
+                p_min,
+            }
+        })
+}
+
+/// Quantises a dense layer (blocks of 4 rows, quads of 4 columns) with exponent
+/// `exp[r % 4]` for row `r`: the quads and the biases in accumulator scale.
+fn quant_layer<F: WeightFormat>(
+    rows: &[Vec<f64>],
+    bias: &[f64],
+    x_frac: u32,
+    exp: [i32; 4],
+) -> (Vec<F::Quad>, Vec<[i32; 4]>) {
+    let cols = pad4(rows.first().map_or(0, Vec::len));
+    let q = |r: usize, k: usize| {
+        let x = rows[r].get(k).copied().unwrap_or(0.0);
+        (x * 2f64.powi(exp[r % 4])).round() as i32
+    };
+    let mut w = Vec::new();
+    let mut bias4 = Vec::new();
+    for blk in 0..rows.len() / 4 {
+        for c in 0..cols / 4 {
+            w.push(F::pack(std::array::from_fn(|r| {
+                std::array::from_fn(|k| q(4 * blk + r, 4 * c + k))
+            })));
+        }
+        bias4.push(std::array::from_fn(|r| {
+            let row = 4 * blk + r;
+            (bias[row] * 2f64.powi(exp[r] + x_frac as i32)).round() as i32
+        }));
+    }
+    (w, bias4)
+}
+
+/// Index shift of an accumulator with `p + x_frac` fraction bits.
+fn index_shift(p: i32, x_frac: u32) -> u32 {
+    (p + x_frac as i32 - act::GRID_FRAC_BITS as i32) as u32
+}
+
+/// Quantises one output row with its own scale (f32 multiplier at the output):
+/// returns the integer weights and the scale `s` (`w ~ s * w_q`), enlarged where needed
+/// so that `sum |w_q| * 32768 < 2^31`.
+fn quantise_output_row(w: &[f64], max_w: i32) -> (Vec<i32>, f64) {
+    let maxabs = w.iter().fold(0.0f64, |a, x| a.max(x.abs()));
+    if maxabs == 0.0 {
+        return (vec![0; w.len()], 0.0);
+    }
+    let mut s = maxabs / max_w as f64;
+    loop {
         let wq: Vec<i32> = w
             .iter()
             .map(|x| ((x / s).round() as i32).clamp(-max_w, max_w))
             .collect();
-        let bq = if with_bias { (b * xs / s).round() } else { 0.0 };
-        let bound = wq.iter().map(|q| q.unsigned_abs() as f64).sum::<f64>() * 32768.0 + bq.abs();
+        let bound = wq.iter().map(|q| q.unsigned_abs() as f64).sum::<f64>() * 32768.0;
         if bound < ACC_LIMIT {
-            return (wq, bq as i32, s, widened);
+            return (wq, s);
         }
         s *= bound / (ACC_LIMIT - 65536.0) * 1.0001;
-        widened = true;
     }
-    // Unreachable in practice: each pass shrinks the bound below the limit.
-    (vec![0; w.len()], 0, 0.0, widened)
 }
 
-/// `M = mult * 2^-(32 + shift)` with `mult` in `[2^30, 2^31)`, `shift` in `0..=31`.
-fn requant(layer: &'static str, row: usize, m: f64) -> Result<Requant, ExportError> {
-    if m == 0.0 {
-        return Ok(Requant::ZERO);
-    }
-    let e = m.log2().floor() as i64;
-    let mut mult = (m * 2f64.powi((30 - e) as i32)).round() as i64;
-    let mut total = 30 - e;
-    if mult >= 1 << 31 {
-        mult >>= 1;
-        total -= 1;
-    }
-    let shift = total - 32;
-    if !(0..=31).contains(&shift) {
-        return Err(ExportError::ScaleOverflow {
-            layer,
-            row,
-            scale: m,
-            shift,
-        });
-    }
-    Ok(Requant {
-        mult: mult as i32,
-        shift: shift as u8,
-    })
-}
-
-/// Quantises a dense layer into blocks of 4 rows and quads of 4 columns.
-#[allow(clippy::type_complexity)]
-fn quant_layer<F: WeightFormat>(
-    layer: &'static str,
-    rows: &[Vec<f64>],
-    bias: &[f64],
-    x_frac: u32,
-    stats: &mut RowStats,
-) -> Result<(Vec<F::Quad>, Vec<[i32; 4]>, Vec<[Requant; 4]>, Vec<f64>), ExportError> {
-    let cols = pad4(rows.first().map_or(0, Vec::len));
-    let mut wq = Vec::new();
-    let mut bq = Vec::new();
-    let mut scales = Vec::new();
-    let mut rq = Vec::new();
-    for (r, (row, b)) in rows.iter().zip(bias).enumerate() {
-        let (mut q, b_q, s, widened) = quantise_row(row, *b, F::MAX_WEIGHT, x_frac, true);
-        q.resize(cols, 0);
-        stats.rows += 1;
-        stats.rows_widened += widened as usize;
-        // Pre-activation Q3.12 = acc * s * 2^-x_frac * 2^12.
-        let m = s * 2f64.powi(PRE_FRAC_BITS as i32 - x_frac as i32);
-        rq.push(requant(layer, r, m)?);
-        wq.push(q);
-        bq.push(b_q);
-        scales.push(s);
-    }
-    let mut w = Vec::new();
-    let mut bias4 = Vec::new();
-    let mut rq4 = Vec::new();
-    for blk in 0..rows.len() / 4 {
-        for q in 0..cols / 4 {
-            let m: [[i32; 4]; 4] =
-                std::array::from_fn(|r| std::array::from_fn(|k| wq[4 * blk + r][4 * q + k]));
-            w.push(F::pack(m));
-        }
-        bias4.push(std::array::from_fn(|r| bq[4 * blk + r]));
-        rq4.push(std::array::from_fn(|r| rq[4 * blk + r]));
-    }
-    Ok((w, bias4, rq4, scales))
-}
+/// Gate names in block order, for errors.
+const GATE_LAYERS: [&str; 4] = ["lstm gate i", "lstm gate f", "lstm gate g", "lstm gate o"];
 
 impl<F: WeightFormat> QuantNet<F> {
     /// Quantises `m` (see `firmware::quant` for the scheme).
@@ -331,11 +322,25 @@ impl<F: WeightFormat> QuantNet<F> {
         let d = m.dims;
         let ip = pad4(d.input);
         let l = layers(m, ip);
-        let mut stats = RowStats::default();
-        let (in_w, in_bias, in_requant, _) =
-            quant_layer::<F>("input", &l.input.0, &l.input.1, 12, &mut stats)?;
-        let (gate_w, gate_bias, gate_requant, _) =
-            quant_layer::<F>("lstm", &l.gates.0, &l.gates.1, 15, &mut stats)?;
+        let (x_in, x_z) = (INPUT_FRAC_BITS, ACT_FRAC_BITS);
+        let in_rows: Vec<(&[f64], f64)> = l
+            .input
+            .0
+            .iter()
+            .zip(&l.input.1)
+            .map(|(w, b)| (w.as_slice(), *b))
+            .collect();
+        let p_in = group_exponent("input", &in_rows, x_in, F::MAX_WEIGHT)?;
+        let mut p_gate = [0i32; 4];
+        for (g, p) in p_gate.iter_mut().enumerate() {
+            let rows: Vec<(&[f64], f64)> = (g..l.gates.0.len())
+                .step_by(4)
+                .map(|r| (l.gates.0[r].as_slice(), l.gates.1[r]))
+                .collect();
+            *p = group_exponent(GATE_LAYERS[g], &rows, x_z, F::MAX_WEIGHT)?;
+        }
+        let (in_w, in_bias) = quant_layer::<F>(&l.input.0, &l.input.1, x_in, [p_in; 4]);
+        let (gate_w, gate_bias) = quant_layer::<F>(&l.gates.0, &l.gates.1, x_z, p_gate);
         // Output layer: no integer bias; y = acc * s * 2^-15 * std + (b * std + mean).
         let mut out_w = Vec::new();
         let mut out_scale = Vec::new();
@@ -346,9 +351,7 @@ impl<F: WeightFormat> QuantNet<F> {
         let mut sc = Vec::new();
         let mut off = Vec::new();
         for (r, row) in l.output.0.iter().enumerate() {
-            let (mut q, _, s, widened) = quantise_row(row, 0.0, F::MAX_WEIGHT, 15, false);
-            stats.rows += 1;
-            stats.rows_widened += widened as usize;
+            let (mut q, s) = quantise_output_row(row, F::MAX_WEIGHT);
             q.resize(hp, 0);
             rows_q.push(q);
             if r < d.output {
@@ -383,14 +386,13 @@ impl<F: WeightFormat> QuantNet<F> {
             input_scale: m.input_std.iter().map(|s| 4096.0 / s).collect(),
             in_w,
             in_bias,
-            in_requant,
+            in_shift: index_shift(p_in, x_in),
             gate_w,
             gate_bias,
-            gate_requant,
+            gate_shift: p_gate.map(|p| index_shift(p, x_z)),
             out_w,
             out_scale,
             out_offset,
-            stats,
         };
         debug_assert_eq!(net.view().check(), None);
         Ok(net)
@@ -404,10 +406,10 @@ impl<F: WeightFormat> QuantNet<F> {
             input_scale: &self.input_scale,
             in_w: &self.in_w,
             in_bias: &self.in_bias,
-            in_requant: &self.in_requant,
+            in_shift: self.in_shift,
             gate_w: &self.gate_w,
             gate_bias: &self.gate_bias,
-            gate_requant: &self.gate_requant,
+            gate_shift: self.gate_shift,
             out_w: &self.out_w,
             out_scale: &self.out_scale,
             out_offset: &self.out_offset,
@@ -419,7 +421,7 @@ impl<F: WeightFormat> QuantNet<F> {
         let d = self.dims;
         let v = self.view();
         let mut z = vec![[0u32; 2]; d.z_quads()];
-        let mut c = vec![0i16; d.hidden];
+        let mut c = vec![0i32; d.hidden];
         let mut xq = vec![[0u32; 2]; d.input_quads];
         let mut hn = vec![[0u32; 2]; d.hidden / 4];
         let mut acc = vec![[0i32; 4]; d.hidden];
@@ -438,7 +440,6 @@ impl<F: WeightFormat> QuantNet<F> {
         let q = std::mem::size_of::<F::Quad>();
         (self.in_w.len() + self.gate_w.len() + self.out_w.len()) * q
             + (self.in_bias.len() + self.gate_bias.len()) * 16
-            + (self.in_requant.len() + self.gate_requant.len()) * 32
             + (self.out_scale.len() + self.out_offset.len()) * 16
             + self.input_mean.len() * 8
     }
@@ -669,12 +670,6 @@ fn quads_i8(q: &[u32; 4]) -> String {
     list(q, |w| format!("{w:#010x}"))
 }
 
-fn requant4(r: &[Requant; 4]) -> String {
-    list(r, |r| {
-        format!("Requant {{ mult: {}, shift: {} }}", r.mult, r.shift)
-    })
-}
-
 fn nested<T: Copy>(flat: &[T], per: usize, f: impl Fn(&T) -> String) -> String {
     let chunks: Vec<String> = flat.chunks(per.max(1)).map(|c| list(c, &f)).collect();
     format!("[\n    {}\n]", chunks.join(",\n    "))
@@ -699,12 +694,24 @@ fn write_quant<F: WeightFormat>(
     );
     let _ = writeln!(
         s,
-        "/// The network's type: `{}` weights, sizes from the exporter.",
+        "/// The network's integer format: `{}` weights and the activation-index shifts of \
+         its power-of-two scales.",
         F::NAME
     );
+    let _ = writeln!(s, "pub struct Format;");
+    let _ = writeln!(s, "impl QuantFormat for Format {{");
+    let _ = writeln!(s, "    type Weights = {fmt};");
+    let _ = writeln!(s, "    const INPUT_SHIFT: u32 = {};", n.in_shift);
     let _ = writeln!(
         s,
-        "pub type Network = QuantLstm<{fmt}, {i}, {iq}, {eb}, {h}, {hq}, {zq}, {o}, {ob}>;"
+        "    const GATE_SHIFTS: [u32; 4] = {};",
+        list(&n.gate_shift, |x| x.to_string())
+    );
+    let _ = writeln!(s, "}}");
+    let _ = writeln!(s, "/// The network's type: sizes from the exporter.");
+    let _ = writeln!(
+        s,
+        "pub type Network = QuantLstm<Format, {i}, {iq}, {eb}, {h}, {hq}, {zq}, {o}, {ob}>;"
     );
     let _ = writeln!(s, "/// The network's recurrent state.");
     let _ = writeln!(s, "pub type State = QuantState<{zq}, {h}>;");
@@ -726,29 +733,11 @@ fn write_quant<F: WeightFormat>(
         "    in_bias: {},",
         list(&n.in_bias, |b| list(b, |x| x.to_string()))
     );
-    let _ = writeln!(
-        s,
-        "    in_requant: [{}],",
-        n.in_requant
-            .iter()
-            .map(requant4)
-            .collect::<Vec<_>>()
-            .join(", ")
-    );
     let _ = writeln!(s, "    gate_w: {},", nested(&n.gate_w, zq, &quad));
     let _ = writeln!(
         s,
         "    gate_bias: {},",
         list(&n.gate_bias, |b| list(b, |x| x.to_string()))
-    );
-    let _ = writeln!(
-        s,
-        "    gate_requant: [{}],",
-        n.gate_requant
-            .iter()
-            .map(requant4)
-            .collect::<Vec<_>>()
-            .join(",\n        ")
     );
     let _ = writeln!(s, "    out_w: {},", nested(&n.out_w, hq, &quad));
     let _ = writeln!(
@@ -1000,7 +989,7 @@ pub fn render(
     let _ = writeln!(out, "#[allow(unused_imports)]");
     let _ = writeln!(
         out,
-        "use crate::quant::{{F32Lstm, F32State, I8Weights, I16Weights, QuantLstm, QuantState, Requant}};"
+        "use crate::quant::{{F32Lstm, F32State, I8Weights, I16Weights, QuantFormat, QuantLstm, QuantState}};"
     );
     let _ = writeln!(
         out,

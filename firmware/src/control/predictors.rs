@@ -14,7 +14,7 @@ use super::compensator::{PredictorInput, TorquePredictor};
 use crate::dynamics::RigidBodyModel;
 use crate::math;
 use crate::model::FeaturePreset;
-use crate::quant::{F32Lstm, F32State, QuantLstm, QuantState, WeightFormat};
+use crate::quant::{F32Lstm, F32State, QuantFormat, QuantLstm, QuantState};
 use core::borrow::Borrow;
 
 /// The model's torques on every joint's reference (`q_ref`, `qd_ref`, `qdd_ref`).
@@ -75,7 +75,7 @@ pub trait TorqueNetwork<const I: usize, const O: usize> {
 }
 
 impl<
-    F: WeightFormat,
+    F: QuantFormat,
     const I: usize,
     const IQ: usize,
     const EB: usize,

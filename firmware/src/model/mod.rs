@@ -37,7 +37,7 @@
 //! seeded random weights).
 
 /// Layout version of generated model files this firmware reads.
-pub const SCHEMA_VERSION: u32 = 1;
+pub const SCHEMA_VERSION: u32 = 2;
 
 /// Index in a compiled-in dynamics model of each compensated joint: the robot joint
 /// indices when the dynamics cover the whole arm, else (the other joints locked away at

@@ -1,224 +1,120 @@
-//! Fixed-point activations: tanh and the logistic sigmoid from Q3.12 to Q0.15 by a
-//! 1025-entry table over [-8, 8] (step 1/64) with linear interpolation from the grid
-//! point below the input. Integer only, no division, no branch: identical on host and
-//! target.
+//! Fixed-point activations: the logistic sigmoid and tanh of an integer accumulator by
+//! direct lookup in an 8192-entry table over [-8, 8) (step 1/512; each entry holds the
+//! value at its interval's midpoint, Q0.15). Integer only, no division, no branch:
+//! identical on host and target, and two Cortex-M4 instructions per activation in the
+//! kernels: `SSAT` of the index, with the accumulator's power-of-two scale folded into
+//! its shift, and `LDRSH` (see [`lookup`]).
 //!
-//! Tables: `round(f(k / 64) * 32768)` clamped to 32767 for `k = 0..=512` (generated
-//! once by the `tables_match_f64` test's formula; the test fails if an entry differs),
-//! mirrored at compile time for the negative half (`-T(k)` for tanh, `32768 - T(k)`
-//! for the sigmoid: the same rounded values) and stored as words `(y_k, y_{k+1} -
-//! y_k)`, so one lookup is one load, one multiply-accumulate and one add (about 9
-//! estimated Cortex-M4 cycles). Worst-case error against f64, measured by the tests:
-//! see `tanh_q15_error_bound` and `sigmoid_q15_error_bound`.
+//! Why direct lookup rather than interpolation: interpolating costs two more
+//! instructions per activation (the fraction bits and their multiply), about 200
+//! estimated cycles per step of the per-joint network's 96 activations, a sixth of what
+//! its cycle goal leaves beside the multiply-accumulates. The finer table keeps the
+//! worst-case error within 33 LSB of Q0.15 for tanh and 12 for the sigmoid (11 of them
+//! its saturation beyond +-8, as before; the
+//! `*_error_bound` tests; an interpolated 1025-entry table had 4), and the exporter's
+//! accuracy report measures what that costs on the compensated torque.
+//!
+//! The tables are written by `build.rs` with `libm` (the same bits on every build
+//! machine) and checked against the f64 formula by `tables_match_f64`. Both end flat
+//! (sigmoid 11 and 32757, tanh -32767 and 32767), so a saturated index gives the end
+//! value.
 
-/// Rows of the tables: entries at `k / 64`, `k = 0..=512`.
-pub const TABLE_LEN: usize = 513;
+include!(concat!(env!("OUT_DIR"), "/act_tables.rs"));
 
-/// `round(tanh(k/64) * 2^15)`, clamped to 32767.
-pub static TANH_Q15: [i16; 513] = [
-    0, 512, 1024, 1535, 2045, 2555, 3063, 3570, 4075, 4578, 5079, 5577, 6073, 6566, 7056, 7542,
-    8025, 8505, 8980, 9452, 9919, 10382, 10840, 11294, 11743, 12186, 12625, 13058, 13486, 13909,
-    14326, 14737, 15143, 15542, 15936, 16324, 16706, 17082, 17452, 17816, 18173, 18525, 18870,
-    19209, 19542, 19869, 20189, 20504, 20813, 21115, 21411, 21702, 21986, 22265, 22538, 22804,
-    23066, 23321, 23571, 23815, 24054, 24287, 24516, 24738, 24956, 25168, 25376, 25578, 25776,
-    25969, 26157, 26340, 26519, 26694, 26864, 27029, 27191, 27348, 27502, 27651, 27797, 27938,
-    28076, 28211, 28341, 28469, 28592, 28713, 28830, 28944, 29055, 29163, 29268, 29370, 29470,
-    29566, 29660, 29751, 29840, 29926, 30010, 30091, 30170, 30247, 30322, 30394, 30465, 30533,
-    30600, 30664, 30727, 30788, 30847, 30904, 30960, 31014, 31067, 31118, 31167, 31215, 31262,
-    31307, 31351, 31394, 31435, 31476, 31515, 31553, 31589, 31625, 31659, 31693, 31726, 31757,
-    31788, 31817, 31846, 31874, 31901, 31928, 31953, 31978, 32002, 32025, 32048, 32070, 32091,
-    32112, 32132, 32151, 32170, 32188, 32206, 32223, 32240, 32256, 32271, 32287, 32301, 32316,
-    32329, 32343, 32356, 32368, 32381, 32392, 32404, 32415, 32426, 32436, 32447, 32456, 32466,
-    32475, 32484, 32493, 32501, 32509, 32517, 32525, 32532, 32540, 32547, 32553, 32560, 32566,
-    32573, 32579, 32584, 32590, 32596, 32601, 32606, 32611, 32616, 32620, 32625, 32629, 32634,
-    32638, 32642, 32646, 32649, 32653, 32657, 32660, 32663, 32667, 32670, 32673, 32676, 32678,
-    32681, 32684, 32686, 32689, 32691, 32694, 32696, 32698, 32700, 32702, 32704, 32706, 32708,
-    32710, 32712, 32714, 32715, 32717, 32718, 32720, 32721, 32723, 32724, 32726, 32727, 32728,
-    32729, 32731, 32732, 32733, 32734, 32735, 32736, 32737, 32738, 32739, 32740, 32741, 32741,
-    32742, 32743, 32744, 32745, 32745, 32746, 32747, 32747, 32748, 32749, 32749, 32750, 32750,
-    32751, 32751, 32752, 32752, 32753, 32753, 32754, 32754, 32755, 32755, 32755, 32756, 32756,
-    32757, 32757, 32757, 32758, 32758, 32758, 32759, 32759, 32759, 32759, 32760, 32760, 32760,
-    32760, 32761, 32761, 32761, 32761, 32762, 32762, 32762, 32762, 32762, 32762, 32763, 32763,
-    32763, 32763, 32763, 32763, 32764, 32764, 32764, 32764, 32764, 32764, 32764, 32764, 32765,
-    32765, 32765, 32765, 32765, 32765, 32765, 32765, 32765, 32765, 32765, 32766, 32766, 32766,
-    32766, 32766, 32766, 32766, 32766, 32766, 32766, 32766, 32766, 32766, 32766, 32766, 32766,
-    32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767,
-    32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767,
-    32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767,
-    32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767,
-    32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767,
-    32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767,
-    32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767,
-    32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767,
-    32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767,
-    32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767,
-    32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767,
-    32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767,
-    32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767, 32767,
-    32767, 32767,
-];
+/// Entries per table.
+pub const TABLE_LEN: usize = 8192;
+/// Index bits: the index saturates to `-4096..=4095` (`SSAT #13`).
+pub const INDEX_BITS: u32 = 13;
+/// Fraction bits of the table's grid (step `2^-9`).
+pub const GRID_FRAC_BITS: u32 = 9;
+/// Row of the sigmoid in [`ACT_TABLES`].
+pub const SIGMOID: usize = 0;
+/// Row of tanh in [`ACT_TABLES`].
+pub const TANH: usize = 1;
 
-/// `round(sigmoid(k/64) * 2^15)`, clamped to 32767.
-pub static SIGMOID_Q15: [i16; 513] = [
-    16384, 16512, 16640, 16768, 16896, 17024, 17151, 17279, 17407, 17534, 17661, 17789, 17916,
-    18042, 18169, 18295, 18421, 18547, 18673, 18798, 18923, 19048, 19173, 19297, 19420, 19544,
-    19667, 19790, 19912, 20034, 20155, 20276, 20397, 20517, 20636, 20756, 20874, 20992, 21110,
-    21227, 21344, 21460, 21575, 21690, 21804, 21918, 22031, 22143, 22255, 22367, 22477, 22587,
-    22696, 22805, 22913, 23021, 23127, 23233, 23338, 23443, 23547, 23650, 23753, 23854, 23955,
-    24056, 24155, 24254, 24352, 24449, 24546, 24642, 24737, 24831, 24925, 25018, 25110, 25201,
-    25292, 25382, 25471, 25559, 25646, 25733, 25819, 25904, 25988, 26072, 26155, 26237, 26318,
-    26399, 26479, 26558, 26636, 26714, 26790, 26866, 26941, 27016, 27090, 27163, 27235, 27306,
-    27377, 27447, 27516, 27585, 27653, 27720, 27786, 27852, 27917, 27981, 28045, 28107, 28169,
-    28231, 28292, 28352, 28411, 28470, 28528, 28585, 28642, 28698, 28753, 28808, 28862, 28915,
-    28968, 29020, 29072, 29123, 29173, 29223, 29272, 29320, 29368, 29416, 29462, 29509, 29554,
-    29599, 29644, 29687, 29731, 29774, 29816, 29858, 29899, 29939, 29979, 30019, 30058, 30097,
-    30135, 30172, 30210, 30246, 30282, 30318, 30353, 30388, 30422, 30456, 30489, 30522, 30555,
-    30587, 30618, 30649, 30680, 30711, 30740, 30770, 30799, 30828, 30856, 30884, 30912, 30939,
-    30966, 30992, 31018, 31044, 31069, 31094, 31119, 31143, 31167, 31191, 31214, 31237, 31260,
-    31282, 31304, 31326, 31347, 31368, 31389, 31409, 31430, 31449, 31469, 31488, 31508, 31526,
-    31545, 31563, 31581, 31599, 31616, 31634, 31651, 31667, 31684, 31700, 31716, 31732, 31747,
-    31763, 31778, 31793, 31807, 31822, 31836, 31850, 31864, 31878, 31891, 31904, 31917, 31930,
-    31943, 31955, 31968, 31980, 31992, 32003, 32015, 32026, 32038, 32049, 32060, 32070, 32081,
-    32091, 32102, 32112, 32122, 32132, 32141, 32151, 32160, 32170, 32179, 32188, 32196, 32205,
-    32214, 32222, 32231, 32239, 32247, 32255, 32263, 32270, 32278, 32285, 32293, 32300, 32307,
-    32314, 32321, 32328, 32335, 32341, 32348, 32354, 32361, 32367, 32373, 32379, 32385, 32391,
-    32397, 32402, 32408, 32414, 32419, 32424, 32430, 32435, 32440, 32445, 32450, 32455, 32460,
-    32464, 32469, 32474, 32478, 32483, 32487, 32491, 32496, 32500, 32504, 32508, 32512, 32516,
-    32520, 32524, 32527, 32531, 32535, 32538, 32542, 32545, 32549, 32552, 32555, 32559, 32562,
-    32565, 32568, 32571, 32574, 32577, 32580, 32583, 32586, 32589, 32592, 32594, 32597, 32600,
-    32602, 32605, 32607, 32610, 32612, 32615, 32617, 32619, 32622, 32624, 32626, 32628, 32630,
-    32633, 32635, 32637, 32639, 32641, 32643, 32645, 32647, 32648, 32650, 32652, 32654, 32656,
-    32657, 32659, 32661, 32662, 32664, 32666, 32667, 32669, 32670, 32672, 32673, 32675, 32676,
-    32678, 32679, 32680, 32682, 32683, 32684, 32686, 32687, 32688, 32689, 32691, 32692, 32693,
-    32694, 32695, 32696, 32698, 32699, 32700, 32701, 32702, 32703, 32704, 32705, 32706, 32707,
-    32708, 32709, 32710, 32711, 32711, 32712, 32713, 32714, 32715, 32716, 32716, 32717, 32718,
-    32719, 32720, 32720, 32721, 32722, 32723, 32723, 32724, 32725, 32725, 32726, 32727, 32727,
-    32728, 32728, 32729, 32730, 32730, 32731, 32731, 32732, 32733, 32733, 32734, 32734, 32735,
-    32735, 32736, 32736, 32737, 32737, 32738, 32738, 32739, 32739, 32740, 32740, 32740, 32741,
-    32741, 32742, 32742, 32742, 32743, 32743, 32744, 32744, 32744, 32745, 32745, 32745, 32746,
-    32746, 32746, 32747, 32747, 32747, 32748, 32748, 32748, 32749, 32749, 32749, 32750, 32750,
-    32750, 32750, 32751, 32751, 32751, 32752, 32752, 32752, 32752, 32753, 32753, 32753, 32753,
-    32753, 32754, 32754, 32754, 32754, 32755, 32755, 32755, 32755, 32755, 32756, 32756, 32756,
-    32756, 32756, 32756, 32757, 32757, 32757,
-];
+const HALF: i32 = (TABLE_LEN / 2) as i32;
 
-/// Entries of the full tables over [-8, 8]: `k / 64 - 8`, `k = 0..=1024`.
-const FULL_LEN: usize = 2 * TABLE_LEN - 1;
-
-/// The table over [-8, 8] from the one over [0, 8]: `odd` mirrors as `-T`, otherwise
-/// as `32768 - T` (the sigmoid's point symmetry).
-const fn full(t: &[i16; TABLE_LEN], odd: bool) -> [i32; FULL_LEN] {
-    let mut out = [0i32; FULL_LEN];
-    let mut k = 0;
-    while k < TABLE_LEN {
-        let v = t[k] as i32;
-        out[TABLE_LEN - 1 + k] = v;
-        out[TABLE_LEN - 1 - k] = if odd { -v } else { 32768 - v };
-        k += 1;
-    }
-    out
-}
-
-/// A full table as words of `(y_k, y_{k+1} - y_k)` (low, high half), `k = 0..1024`:
-/// one load per lookup (computed at compile time).
-const fn pairs(t: &[i16; TABLE_LEN], odd: bool) -> [u32; FULL_LEN - 1] {
-    let f = full(t, odd);
-    let mut out = [0u32; FULL_LEN - 1];
-    let mut k = 0;
-    while k < FULL_LEN - 1 {
-        let d = f[k + 1] - f[k];
-        out[k] = (f[k] as u16 as u32) | ((d as u32) << 16);
-        k += 1;
-    }
-    out
-}
-
-static TANH_PAIRS: [u32; FULL_LEN - 1] = pairs(&TANH_Q15, true);
-static SIGMOID_PAIRS: [u32; FULL_LEN - 1] = pairs(&SIGMOID_Q15, false);
-
-/// Interpolated table value at `x` (Q3.12): `u = x + 32768`, `k = u >> 6`,
-/// `y_k + ((y_{k+1} - y_k) * (u & 63) + 32) >> 6` (Q0.15).
+/// The table index of `acc * 2^-(shift + 9)`: `sat13(acc >> shift)`, `-4096..=4095`.
 #[inline(always)]
-fn lookup(pairs: &[u32; FULL_LEN - 1], x: i16) -> i16 {
-    let u = (x as i32 + 32768) as u32;
-    let w = pairs[((u >> 6) & 1023) as usize];
-    let y0 = w as u16 as i16 as i32;
-    let d = (w as i32) >> 16;
-    (y0 + ((d * (u & 63) as i32 + 32) >> 6)) as i16
+pub fn index(acc: i32, shift: u32) -> i32 {
+    (acc >> (shift & 31)).clamp(-HALF, HALF - 1)
 }
 
-/// tanh: Q3.12 in, Q0.15 out (+-32767 at and beyond +-8).
+/// `f(acc * 2^-(shift + 9))`, Q0.15, for the function in row `f` of [`ACT_TABLES`]
+/// ([`SIGMOID`] or [`TANH`]); `shift` is `E - 9` for an accumulator with `E` fraction bits.
 #[inline(always)]
-pub fn tanh_q15(x: i16) -> i16 {
-    lookup(&TANH_PAIRS, x)
+pub fn lookup(f: usize, acc: i32, shift: u32) -> i16 {
+    let k = (index(acc, shift) + HALF) as usize;
+    ACT_TABLES
+        .get(f)
+        .and_then(|t| t.get(k))
+        .copied()
+        .unwrap_or(0)
 }
 
-/// Logistic sigmoid: Q3.12 in, Q0.15 out (11..=32757, the table's ends).
+/// Logistic sigmoid of `acc * 2^-(shift + 9)`, Q0.15.
 #[inline(always)]
-pub fn sigmoid_q15(x: i16) -> i16 {
-    lookup(&SIGMOID_PAIRS, x)
+pub fn sigmoid_q15(acc: i32, shift: u32) -> i16 {
+    lookup(SIGMOID, acc, shift)
+}
+
+/// tanh of `acc * 2^-(shift + 9)`, Q0.15.
+#[inline(always)]
+pub fn tanh_q15(acc: i32, shift: u32) -> i16 {
+    lookup(TANH, acc, shift)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
+    fn sigmoid(x: f64) -> f64 {
+        1.0 / (1.0 + (-x).exp())
+    }
+
     #[test]
     fn tables_match_f64() {
         for k in 0..TABLE_LEN {
-            let x = k as f64 / 64.0;
-            let t = ((x.tanh() * 32768.0).round() as i32).min(32767);
-            let s = ((1.0 / (1.0 + (-x).exp()) * 32768.0).round() as i32).min(32767);
-            assert_eq!(TANH_Q15[k] as i32, t, "tanh {k}");
-            assert_eq!(SIGMOID_Q15[k] as i32, s, "sigmoid {k}");
+            let x = (k as f64 - 4096.0 + 0.5) / 512.0;
+            let s = ((sigmoid(x) * 32768.0).round() as i32).clamp(0, 32767);
+            let t = ((x.tanh() * 32768.0).round() as i32).clamp(-32767, 32767);
+            assert_eq!(ACT_TABLES[SIGMOID][k] as i32, s, "sigmoid {k}");
+            assert_eq!(ACT_TABLES[TANH][k] as i32, t, "tanh {k}");
         }
     }
 
-    /// The definition the kernels implement, from the f64 formula of the tables
-    /// (two table reads of the full [-8, 8] table).
-    fn reference(f: fn(f64) -> f64, lo: i32, x: i16) -> i16 {
-        let t = |k: i32| {
-            let v = (f((k - 512) as f64 / 64.0) * 32768.0).round() as i32;
-            v.clamp(lo, 32767)
-        };
-        let u = x as i32 + 32768;
-        let (k, frac) = (u >> 6, u & 63);
-        let (y0, y1) = (t(k), t(k + 1));
-        (y0 + (((y1 - y0) * frac + 32) >> 6)) as i16
+    /// Worst |error| in Q0.15 LSB over a dense sweep of [-12, 12] at Q3.12 (shift 3).
+    fn max_err_lsb(f: usize, g: fn(f64) -> f64) -> f64 {
+        (-12 * 4096..12 * 4096)
+            .map(|a: i32| (lookup(f, a, 3) as f64 - g(a as f64 / 4096.0) * 32768.0).abs())
+            .fold(0.0, f64::max)
     }
 
     #[test]
-    fn pair_tables_give_the_reference_interpolation() {
-        let sig = |x: f64| 1.0 / (1.0 + (-x).exp());
-        for x in i16::MIN..=i16::MAX {
-            assert_eq!(tanh_q15(x), reference(f64::tanh, -32767, x), "tanh {x}");
-            assert_eq!(sigmoid_q15(x), reference(sig, 0, x), "sigmoid {x}");
-        }
-    }
-
-    fn max_err(f: fn(i16) -> i16, g: fn(f64) -> f64) -> f64 {
-        let mut worst = 0.0f64;
-        for x in i16::MIN..=i16::MAX {
-            let y = f(x) as f64 / 32768.0;
-            let r = g(x as f64 / 4096.0);
-            worst = worst.max((y - r).abs());
-        }
-        worst
+    fn tanh_error_bound() {
+        let e = max_err_lsb(TANH, f64::tanh);
+        assert!(e < 33.0, "tanh max error {e} LSB");
+        assert_eq!(tanh_q15(i32::MAX, 1), 32767);
+        assert_eq!(tanh_q15(i32::MIN, 1), -32767);
+        // Odd: the midpoint grid is symmetric about zero.
+        assert_eq!(tanh_q15(-1, 0), -tanh_q15(0, 0));
     }
 
     #[test]
-    fn tanh_q15_error_bound() {
-        let e = max_err(tanh_q15, f64::tanh);
-        assert!(e < 4.0 / 32768.0, "tanh max error {e}");
-        assert_eq!(tanh_q15(0), 0);
-        assert_eq!(tanh_q15(i16::MIN), -tanh_q15(i16::MAX));
+    fn sigmoid_error_bound() {
+        let e = max_err_lsb(SIGMOID, sigmoid);
+        assert!(e < 12.0, "sigmoid max error {e} LSB");
+        assert_eq!(sigmoid_q15(i32::MIN, 1), 11);
+        assert_eq!(sigmoid_q15(i32::MAX, 1), 32757);
+        assert_eq!(sigmoid_q15(-1, 0) as i32 + sigmoid_q15(0, 0) as i32, 32768);
     }
 
     #[test]
-    fn sigmoid_q15_error_bound() {
-        let e = max_err(sigmoid_q15, |x| 1.0 / (1.0 + (-x).exp()));
-        assert!(e < 3.0 / 32768.0, "sigmoid max error {e}");
-        assert_eq!(sigmoid_q15(0), 16384);
-        assert!(sigmoid_q15(i16::MIN) >= 0);
+    fn the_shift_sets_the_scale() {
+        // 1.5 with 12 fraction bits (shift 3) and with 25 (shift 16): the same entry.
+        assert_eq!(index(6144, 3), 768);
+        assert_eq!(index(6144 << 13, 16), 768);
+        assert_eq!(index(i32::MAX, 1), 4095);
+        assert_eq!(index(i32::MIN, 1), -4096);
     }
 }

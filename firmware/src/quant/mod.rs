@@ -6,10 +6,10 @@
 //! | precision | weights | activations | accumulator | kernel |
 //! |---|---|---|---|---|
 //! | [`F32Lstm`] | f32 | f32 | f32, sequential per row | `dsp::matvec4_f32`, `math::sigmoid_fast` / `tanh_fast` |
-//! | [`QuantLstm<I16Weights>`] | int16, per-row scale | int16 | i32 (SMLAD), i64 requantisation | `dsp::matvec4_i16` (gates), `dsp::dot4_i16` |
-//! | [`QuantLstm<I8Weights>`] | int8, per-row scale | int16 | i32 (SXTB16 + SMLAD), i64 requantisation | `dsp::dot4_i8` |
+//! | [`QuantLstm`] with [`I16Weights`] | int16, per-gate power-of-two scale | int16 | i32 (SMLAD) | `dsp::lstm_small_i16` (`[e; h]` of at most 16 words), else `dsp::matvec4_i16` |
+//! | [`QuantLstm`] with [`I8Weights`] | int8, per-gate power-of-two scale | int16 | i32 (SXTB16 + SMLAD) | `dsp::dot4_i8` |
 //!
-//! # Integer scheme (in the spirit of CMSIS-NN / TFLM int16x8 LSTM)
+//! # Integer scheme (in the spirit of CMSIS-NN's q15 kernels and TFLM's int16x8 LSTM)
 //!
 //! Q formats (`Qm.n`: m integer bits, n fraction bits, sign bit not counted):
 //!
@@ -18,23 +18,32 @@
 //! | normalised input `x_n = (x - mean) / std` | Q3.12 | +-8 |
 //! | input-layer output `e = tanh(.)` | Q0.15 | +-1 |
 //! | hidden state `h` | Q0.15 | +-1 |
-//! | gate pre-activations (input layer too) | Q3.12 | +-8 (sigmoid/tanh saturate beyond) |
 //! | gates `i, f, o` (sigmoid) and `g` (tanh) | Q0.15 | 0..1, +-1 |
-//! | cell state `c` | Q4.11 (power-of-two scale 2^-11) | +-16 |
+//! | cell state `c` (i32) | Q10.21 | +-1024 |
+//! | input-layer weights | `2^-P_in` per layer | |
+//! | gate weights | `2^-P_g` per gate (`i`, `f`, `g`, `o`: the rows of one gate share it, as TFLM's per-tensor gate scales) | |
+//! | output weights | f32 scale per row | |
 //!
-//! Every weight row `r` has its own scale `s_r` (`w ~ s_r * w_q`): `max|w| / 32767`
-//! (int16) or `/ 127` (int8), enlarged by the exporter where needed so that the worst
-//! case `sum_k |w_q[r][k]| * 32768 + |b_q[r]| < 2^31`: no accumulator can overflow
-//! for any input (int8 rows of up to 511 columns always fit). The bias is folded into
-//! the accumulator's scale (`b_q = round(b / (s_r * 2^-n_x))`), the input
-//! normalisation into a per-feature multiplier (`x_q = round((x - mean) * 2^12 / std)`,
-//! the only f32 arithmetic besides the output), the LSTM's two PyTorch biases into one.
-//! A row's accumulator goes to the Q3.12 pre-activation by a fixed-point multiplier:
-//! `pre = sat16(round(round(acc * m_r / 2^32) / 2^s))`, `m_r` in `[2^30, 2^31)`, `s` in 0..=31.
-//! The cell update is `c' = sat16(round(f*c >> 15) + round(i*g >> 19))`, `h' =
-//! round(o * tanh(sat16(2c')) >> 15)`. The output row is `y = acc * scale_o + offset_o`
-//! in f32 (`scale_o` holds `s_o * 2^-15 * output_std`, `offset_o` the bias and the
-//! output mean). Activations: [`act`] (table + interpolation, no division).
+//! Power-of-two scales make requantisation free: an accumulator with `E` fraction bits
+//! (`E = P_in + 12` for the input layer, `P_g + 15` for gate `g`) indexes the activation
+//! table directly as `sat13(acc >> (E - 9))` (`act::index`, one `SSAT` with a shift), so
+//! no multiplier and no rounding shift stand between the multiply-accumulates and the
+//! activation. The exporter picks each exponent as the largest for which every weight
+//! fits the format (32767 or 127) and no accumulator can overflow for any input
+//! (`sum_k |w_q[r][k]| * 32768 + |b_q[r]| < 2^31` on every row), and refuses a model
+//! whose index shift would leave `1..=31`. The bias is folded into the accumulator's
+//! scale (`b_q = round(b * 2^E)`), the input normalisation into a per-feature multiplier
+//! (`x_q = round((x - mean) * 2^12 / std)`, the only f32 arithmetic besides the output),
+//! the LSTM's two PyTorch biases into one. With `i, f, g, o` in Q0.15:
+//!
+//! ```text
+//! c' = qdadd((i * g) >> 9, (c * f) >> 16)   // SMULBB, ASR, SMULWB, QDADD: Q10.21, saturating
+//! h' = (o * tanh(c')) >> 15                 // tanh index sat13(c' >> 12); SMULBB, ASR
+//! ```
+//!
+//! The output row is `y = acc * scale_o + offset_o` in f32 (`scale_o` holds `s_o * 2^-15 *
+//! output_std`, `offset_o` the bias and the output mean). Activations: [`act`] (direct
+//! lookup in an 8192-entry table, no division).
 //!
 //! # Layout
 //!
@@ -42,16 +51,18 @@
 //! zero inputs by the exporter). The LSTM's gate rows are grouped by cell: block `j`
 //! holds the rows `i_j, f_j, g_j, o_j`, so one 4-row pass gives all gates of cell `j`.
 //! The LSTM's input is the packed vector `z = [e; h]` (input layer output, then the
-//! hidden state) and one weight matrix `[W_ih | W_hh]` with one scale per row.
+//! hidden state) and one weight matrix `[W_ih | W_hh]`.
 //! Packed int16 activations are `[[u32; 2]; Q]`: quad `q`, word `0` = columns
 //! `4q, 4q+1`, word `1` = `4q+2, 4q+3` (`dsp::pack`).
 //!
 //! Shapes are const generics; [`QuantLstm::SHAPE`] and [`F32Lstm::SHAPE`] are
 //! compile-time assertions (a model whose sizes do not fit together does not compile).
-//! All arithmetic lives in shape-erased kernels ([`QuantView::step`],
+//! All arithmetic is defined by shape-erased kernels ([`QuantView::step`],
 //! [`F32View::step`]) that the fixed-size networks call on their own arrays without
 //! copying; the exporter, whose sizes are only known at run time, runs exactly this
-//! code on its own vectors, so host and target compute the same bits.
+//! code on its own vectors. On the Cortex-M4, a small int16 network (`[e; h]` in at
+//! most 8 quads, at most 8 inputs) runs instead the fused assembly kernel
+//! `dsp::lstm_small_i16`, which computes the same bits (the QEMU golden suites prove it).
 
 pub mod act;
 pub mod golden;
@@ -61,12 +72,12 @@ use crate::math;
 
 /// Fraction bits of the normalised input (Q3.12).
 pub const INPUT_FRAC_BITS: u32 = 12;
-/// Fraction bits of gate and layer pre-activations (Q3.12).
-pub const PRE_FRAC_BITS: u32 = 12;
 /// Fraction bits of `e`, `h` and the gates (Q0.15).
 pub const ACT_FRAC_BITS: u32 = 15;
-/// Fraction bits of the cell state (Q4.11).
-pub const CELL_FRAC_BITS: u32 = 11;
+/// Fraction bits of the cell state (Q10.21).
+pub const CELL_FRAC_BITS: u32 = 21;
+/// Index shift of the cell state's tanh (`CELL_FRAC_BITS - act::GRID_FRAC_BITS`).
+pub const CELL_TANH_SHIFT: u32 = CELL_FRAC_BITS - act::GRID_FRAC_BITS;
 
 /// A weight storage format of the integer kernels: how one quad of 4 columns of a
 /// 4-row block is stored and multiplied.
@@ -77,6 +88,8 @@ pub trait WeightFormat {
     const NAME: &'static str;
     /// Largest weight magnitude of the format.
     const MAX_WEIGHT: i32;
+    /// Whether a quad is two SMLAD-ready int16 pairs per row (the fused kernel's format).
+    const INT16_PAIRS: bool = false;
     /// `acc[r] + sum_k w[r][k] * x[k]` for the 4 rows of a block.
     fn dot4(acc: [i32; 4], w: &[Self::Quad], x: &[[u32; 2]]) -> [i32; 4];
     /// [`Self::dot4`] for every block `b` of a layer: `acc[b] = dot4(bias[b],
@@ -90,6 +103,11 @@ pub trait WeightFormat {
     }
     /// Packs `w[r][k]` (4 rows x 4 columns, each within `MAX_WEIGHT`).
     fn pack(w: [[i32; 4]; 4]) -> Self::Quad;
+    /// The quads as int16 pairs when that is the format ([`Self::INT16_PAIRS`]).
+    fn int16_pairs(q: &[Self::Quad]) -> Option<&[[[u32; 4]; 2]]> {
+        let _ = q;
+        None
+    }
 }
 
 /// int16 weights: per quad, the two packed pairs of the 4 rows (`[pair][row]`).
@@ -100,6 +118,7 @@ impl WeightFormat for I16Weights {
     type Quad = [[u32; 4]; 2];
     const NAME: &'static str = "int16";
     const MAX_WEIGHT: i32 = 32767;
+    const INT16_PAIRS: bool = true;
     #[inline(always)]
     fn dot4(acc: [i32; 4], w: &[Self::Quad], x: &[[u32; 2]]) -> [i32; 4] {
         dsp::dot4_i16(acc, w, x)
@@ -114,6 +133,9 @@ impl WeightFormat for I16Weights {
             [p(0, 0), p(1, 0), p(2, 0), p(3, 0)],
             [p(0, 2), p(1, 2), p(2, 2), p(3, 2)],
         ]
+    }
+    fn int16_pairs(q: &[Self::Quad]) -> Option<&[[[u32; 4]; 2]]> {
+        Some(q)
     }
 }
 
@@ -134,34 +156,18 @@ impl WeightFormat for I8Weights {
     }
 }
 
-/// Fixed-point requantisation of one row: `M = mult * 2^-(32 + shift)`, `mult` in
-/// `[2^30, 2^31)`, `shift` in `0..=31` (so `2^-64 <= M < 2^-1`).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Requant {
-    /// Multiplier (Q31 mantissa).
-    pub mult: i32,
-    /// Right shift after the rounded high word, `0..=31`.
-    pub shift: u8,
-}
-
-impl Requant {
-    /// A zero row (padding): maps every accumulator to 0.
-    pub const ZERO: Requant = Requant { mult: 0, shift: 0 };
-
-    /// `sat16(rshift_round(hi32_round(acc * mult), shift))`: the rounded high word of
-    /// the 64-bit product (SMMULR), then a rounding right shift, then saturation.
-    #[inline(always)]
-    pub fn apply(self, acc: i32) -> i16 {
-        let hi = (((acc as i64) * (self.mult as i64) + (1i64 << 31)) >> 32) as i32;
-        let s = (self.shift & 31) as u32;
-        let round = ((1u32 << s) >> 1) as i32;
-        sat16(hi.saturating_add(round) >> s)
-    }
-}
-
-#[inline(always)]
-fn sat16(v: i32) -> i16 {
-    v.clamp(i16::MIN as i32, i16::MAX as i32) as i16
+/// The integer format of one compiled-in network: its weight format and the
+/// activation-index shifts of its layers (from the power-of-two scales the exporter
+/// chose). Constants, so that the assembly kernel can encode them as immediates; each
+/// generated model file defines its own `Format` type.
+pub trait QuantFormat {
+    /// Weight storage format.
+    type Weights: WeightFormat;
+    /// Index shift of the input layer's accumulators (`P_in + 12 - 9`), `1..=31`.
+    const INPUT_SHIFT: u32;
+    /// Index shift of each gate's accumulators (`P_g + 15 - 9`), order `i, f, g, o`,
+    /// each `1..=31`.
+    const GATE_SHIFTS: [u32; 4];
 }
 
 /// Rounds half away from zero and saturates to int16 (NaN gives 0).
@@ -221,14 +227,14 @@ pub struct QuantView<'a, F: WeightFormat> {
     pub in_w: &'a [F::Quad],
     /// `[EB]` input layer bias (accumulator scale).
     pub in_bias: &'a [[i32; 4]],
-    /// `[EB]` input layer requantisation.
-    pub in_requant: &'a [[Requant; 4]],
+    /// Activation-index shift of the input layer ([`QuantFormat::INPUT_SHIFT`]).
+    pub in_shift: u32,
     /// `[H * ZQ]` gates.
     pub gate_w: &'a [F::Quad],
     /// `[H]` gate bias.
     pub gate_bias: &'a [[i32; 4]],
-    /// `[H]` gate requantisation.
-    pub gate_requant: &'a [[Requant; 4]],
+    /// Activation-index shifts of the gates ([`QuantFormat::GATE_SHIFTS`]).
+    pub gate_shift: [u32; 4],
     /// `[OB * HQ]` output layer.
     pub out_w: &'a [F::Quad],
     /// `[OB]` output scale.
@@ -238,20 +244,18 @@ pub struct QuantView<'a, F: WeightFormat> {
 }
 
 impl<F: WeightFormat> QuantView<'_, F> {
-    /// Whether every array has the length `dims` asks for (`None`) or the first that
-    /// does not (its name).
+    /// Whether every array has the length `dims` asks for and every shift is in
+    /// `1..=31` (`None`), or the first that does not (its name).
     pub fn check(&self) -> Option<&'static str> {
         let d = self.dims;
         let zq = d.z_quads();
-        let lens: [(&'static str, usize, usize); 11] = [
+        let lens: [(&'static str, usize, usize); 9] = [
             ("input_mean", d.input, self.input_mean.len()),
             ("input_scale", d.input, self.input_scale.len()),
             ("in_w", d.embed_blocks * d.input_quads, self.in_w.len()),
             ("in_bias", d.embed_blocks, self.in_bias.len()),
-            ("in_requant", d.embed_blocks, self.in_requant.len()),
             ("gate_w", d.hidden * zq, self.gate_w.len()),
             ("gate_bias", d.hidden, self.gate_bias.len()),
-            ("gate_requant", d.hidden, self.gate_requant.len()),
             ("out_w", d.output_blocks * (d.hidden / 4), self.out_w.len()),
             ("out_scale", d.output_blocks, self.out_scale.len()),
             ("out_offset", d.output_blocks, self.out_offset.len()),
@@ -262,29 +266,20 @@ impl<F: WeightFormat> QuantView<'_, F> {
         if !shape_ok {
             return Some("dims");
         }
+        let shift_ok = |s: u32| (1..=31).contains(&s);
+        if !shift_ok(self.in_shift) {
+            return Some("in_shift");
+        }
+        if !self.gate_shift.iter().all(|&s| shift_ok(s)) {
+            return Some("gate_shift");
+        }
         lens.iter().find(|(_, e, a)| e != a).map(|(n, _, _)| *n)
     }
 
-    /// The kernel: one step. `z` (`ZQ` quads) and `c` (`H`) are the state, `xq`
-    /// (`IQ` quads), `h_new` (`HQ` quads) and `acc` (`H` blocks) scratch, `input`
-    /// (`I`) and `out` (`O`). Lengths are trusted (a mismatch gives a wrong result,
-    /// never a panic).
-    #[allow(clippy::too_many_arguments)]
+    /// Input quantisation (f32, the only float arithmetic before the output): `input`
+    /// (`I`) into the packed Q3.12 quads `xq` (`IQ`, padding zero).
     #[inline(always)]
-    pub fn step(
-        &self,
-        z: &mut [[u32; 2]],
-        c: &mut [i16],
-        xq: &mut [[u32; 2]],
-        h_new: &mut [[u32; 2]],
-        acc: &mut [[i32; 4]],
-        input: &[f32],
-        out: &mut [f32],
-    ) {
-        let d = self.dims;
-        let iq = d.input_quads.max(1);
-        let hq = (d.hidden / 4).max(1);
-        // Input quantisation (f32, the only float arithmetic before the output).
+    pub fn quantise_input(&self, xq: &mut [[u32; 2]], input: &[f32]) {
         for q in xq.iter_mut() {
             *q = [0, 0];
         }
@@ -298,46 +293,20 @@ impl<F: WeightFormat> QuantView<'_, F> {
                 put(q, k & 3, quantise_i16((x - m) * s));
             }
         }
-        // Input layer: e = tanh(pre), Q0.15, into the e part of z.
-        let blocks = self
-            .in_w
-            .chunks_exact(iq)
-            .zip(self.in_bias.iter().zip(self.in_requant));
-        for ((w, (b, rq)), zq_e) in blocks.zip(z.iter_mut()) {
-            let a = F::dot4(*b, w, xq);
-            let e0 = act::tanh_q15(rq[0].apply(a[0]));
-            let e1 = act::tanh_q15(rq[1].apply(a[1]));
-            let e2 = act::tanh_q15(rq[2].apply(a[2]));
-            let e3 = act::tanh_q15(rq[3].apply(a[3]));
-            *zq_e = [dsp::pack(e0, e1), dsp::pack(e2, e3)];
-        }
-        // LSTM gates: one 4-row block per cell (i, f, g, o), the whole layer in one
-        // kernel call from the biases.
-        F::matvec4(acc, self.gate_bias, self.gate_w, z);
-        // Cell updates, two cells (one packed word of h) at a time.
-        let cells = acc
-            .chunks_exact(2)
-            .zip(self.gate_requant.chunks_exact(2))
-            .zip(c.chunks_exact_mut(2))
-            .zip(h_new.as_flattened_mut());
-        for (((a2, rq2), c2), hw) in cells {
-            let h0 = cell_update(&a2[0], &rq2[0], &mut c2[0]);
-            let h1 = cell_update(&a2[1], &rq2[1], &mut c2[1]);
-            *hw = dsp::pack(h0, h1);
-        }
-        if let Some(hz) = z.get_mut(d.embed_blocks..) {
-            for (dst, src) in hz.iter_mut().zip(h_new.iter()) {
-                *dst = *src;
-            }
-        }
-        // Output layer, f32 de-normalisation.
+    }
+
+    /// The output layer over the packed hidden state `h` (`HQ` quads), with the f32
+    /// de-normalisation, into `out` (`O`).
+    #[inline(always)]
+    pub fn output(&self, h: &[[u32; 2]], out: &mut [f32]) {
+        let hq = (self.dims.hidden / 4).max(1);
         let mut rows = out.iter_mut();
         let outs = self
             .out_w
             .chunks_exact(hq)
             .zip(self.out_scale.iter().zip(self.out_offset));
         for (w, (s, off)) in outs {
-            let a = F::dot4([0; 4], w, h_new);
+            let a = F::dot4([0; 4], w, h);
             for r in 0..4 {
                 if let Some(y) = rows.next() {
                     *y = a[r] as f32 * s[r] + off[r];
@@ -345,30 +314,79 @@ impl<F: WeightFormat> QuantView<'_, F> {
             }
         }
     }
+
+    /// The kernel: one step. `z` (`ZQ` quads) and `c` (`H`) are the state, `xq`
+    /// (`IQ` quads), `h_new` (`HQ` quads) and `acc` (`H` blocks) scratch, `input`
+    /// (`I`) and `out` (`O`). Lengths are trusted (a mismatch gives a wrong result,
+    /// never a panic).
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    pub fn step(
+        &self,
+        z: &mut [[u32; 2]],
+        c: &mut [i32],
+        xq: &mut [[u32; 2]],
+        h_new: &mut [[u32; 2]],
+        acc: &mut [[i32; 4]],
+        input: &[f32],
+        out: &mut [f32],
+    ) {
+        let d = self.dims;
+        let iq = d.input_quads.max(1);
+        self.quantise_input(xq, input);
+        // Input layer: e = tanh(acc), Q0.15, into the e part of z.
+        let blocks = self.in_w.chunks_exact(iq).zip(self.in_bias);
+        for ((w, b), zq_e) in blocks.zip(z.iter_mut()) {
+            let e = F::dot4(*b, w, xq).map(|a| act::tanh_q15(a, self.in_shift));
+            *zq_e = [dsp::pack(e[0], e[1]), dsp::pack(e[2], e[3])];
+        }
+        // LSTM gates: one 4-row block per cell (i, f, g, o), the whole layer in one
+        // kernel call from the biases.
+        F::matvec4(acc, self.gate_bias, self.gate_w, z);
+        // Cell updates, two cells (one packed word of h) at a time.
+        let cells = acc
+            .chunks_exact(2)
+            .zip(c.chunks_exact_mut(2))
+            .zip(h_new.as_flattened_mut());
+        for ((a2, c2), hw) in cells {
+            let h0 = cell_update(&a2[0], &self.gate_shift, &mut c2[0]);
+            let h1 = cell_update(&a2[1], &self.gate_shift, &mut c2[1]);
+            *hw = dsp::pack(h0, h1);
+        }
+        if let Some(hz) = z.get_mut(d.embed_blocks..) {
+            for (dst, src) in hz.iter_mut().zip(h_new.iter()) {
+                *dst = *src;
+            }
+        }
+        self.output(h_new, out);
+    }
 }
 
-/// One LSTM cell from its four gate accumulators (i, f, g, o): updates the Q4.11
-/// cell state `c` and returns the Q0.15 hidden value.
+/// One LSTM cell from its four gate accumulators (i, f, g, o) and their index
+/// shifts: updates the Q10.21 cell state `c` and returns the Q0.15 hidden value (the
+/// instruction sequence of `dsp::lstm_small_i16`'s cell, see the module docs).
 #[inline(always)]
-fn cell_update(acc: &[i32; 4], rq: &[Requant; 4], c: &mut i16) -> i16 {
-    let i = act::sigmoid_q15(rq[0].apply(acc[0])) as i32;
-    let f = act::sigmoid_q15(rq[1].apply(acc[1])) as i32;
-    let g = act::tanh_q15(rq[2].apply(acc[2])) as i32;
-    let o = act::sigmoid_q15(rq[3].apply(acc[3])) as i32;
-    let fc = (f * (*c as i32) + (1 << 14)) >> 15;
-    let ig = (i * g + (1 << 18)) >> 19;
-    let cn = sat16(fc + ig);
+pub fn cell_update(acc: &[i32; 4], shift: &[u32; 4], c: &mut i32) -> i16 {
+    let i = act::sigmoid_q15(acc[0], shift[0]) as i32;
+    let f = act::sigmoid_q15(acc[1], shift[1]) as i32;
+    let g = act::tanh_q15(acc[2], shift[2]) as i32;
+    let o = act::sigmoid_q15(acc[3], shift[3]) as i32;
+    // SMULWB: the top 32 bits of the 48-bit product c * f.
+    let cf = ((*c as i64 * f as i64) >> 16) as i32;
+    // QDADD: sat(ig + sat(2 cf)).
+    let cn = ((i * g) >> 9).saturating_add(cf.saturating_mul(2));
     *c = cn;
-    let tc = act::tanh_q15(sat16(2 * (cn as i32))) as i32;
-    ((o * tc + (1 << 14)) >> 15) as i16
+    let tc = act::tanh_q15(cn, CELL_TANH_SHIFT) as i32;
+    ((o * tc) >> 15) as i16
 }
 
-/// An integer LSTM network of fixed sizes: `I` inputs (padded to `4 * IQ`
-/// columns), input layer of `E = 4 * EB` rows, `H = 4 * HQ` cells (gate matrix over
-/// `ZQ = EB + HQ` quads of `[e; h]`), `O` outputs (padded to `4 * OB` rows).
+/// An integer LSTM network of fixed sizes in format `F` ([`QuantFormat`]: weights and
+/// index shifts): `I` inputs (padded to `4 * IQ` columns), input layer of `E = 4 * EB`
+/// rows, `H = 4 * HQ` cells (gate matrix over `ZQ = EB + HQ` quads of `[e; h]`), `O`
+/// outputs (padded to `4 * OB` rows).
 #[derive(Clone, Copy, Debug)]
 pub struct QuantLstm<
-    F: WeightFormat,
+    F: QuantFormat,
     const I: usize,
     const IQ: usize,
     const EB: usize,
@@ -383,19 +401,15 @@ pub struct QuantLstm<
     /// Input quantisation: `2^12 / std` per feature.
     pub input_scale: [f32; I],
     /// Input layer weights `[block][quad]`.
-    pub in_w: [[F::Quad; IQ]; EB],
+    pub in_w: [[<F::Weights as WeightFormat>::Quad; IQ]; EB],
     /// Input layer bias (accumulator scale).
     pub in_bias: [[i32; 4]; EB],
-    /// Input layer requantisation to Q3.12.
-    pub in_requant: [[Requant; 4]; EB],
     /// Gate weights over `[e; h]`; block `j` = rows `i_j, f_j, g_j, o_j`.
-    pub gate_w: [[F::Quad; ZQ]; H],
+    pub gate_w: [[<F::Weights as WeightFormat>::Quad; ZQ]; H],
     /// Gate bias (accumulator scale).
     pub gate_bias: [[i32; 4]; H],
-    /// Gate requantisation to Q3.12.
-    pub gate_requant: [[Requant; 4]; H],
     /// Output weights (rows beyond `O` zero).
-    pub out_w: [[F::Quad; HQ]; OB],
+    pub out_w: [[<F::Weights as WeightFormat>::Quad; HQ]; OB],
     /// f32 scale per output row (row scale x 2^-15 x output std).
     pub out_scale: [[f32; 4]; OB],
     /// f32 offset per output row (bias x output std + output mean).
@@ -403,15 +417,17 @@ pub struct QuantLstm<
 }
 
 /// The recurrent state of an integer network: the packed `[e; h]` vector (the `h`
-/// part is the state, the `e` part scratch), the Q4.11 cell state, and the gate
+/// part is the state, the `e` part scratch), the Q10.21 cell state, and the gate
 /// accumulators as scratch (kept here so that a step need not clear `16 * H` bytes
-/// of stack; every step overwrites them before reading).
+/// of stack; every step overwrites them before reading). `repr(C)`: the fused kernel
+/// addresses `z` and `c` from one pointer.
+#[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct QuantState<const ZQ: usize, const H: usize> {
     /// Packed `[e; h]`, Q0.15.
     pub z: [[u32; 2]; ZQ],
-    /// Cell state, Q4.11.
-    pub c: [i16; H],
+    /// Cell state, Q10.21.
+    pub c: [i32; H],
     /// Scratch: the last step's gate accumulators (no meaning between steps).
     pub acc: [[i32; 4]; H],
 }
@@ -439,7 +455,7 @@ impl<const ZQ: usize, const H: usize> Default for QuantState<ZQ, H> {
 }
 
 impl<
-    F: WeightFormat,
+    F: QuantFormat,
     const I: usize,
     const IQ: usize,
     const EB: usize,
@@ -457,6 +473,19 @@ impl<
         assert!(4 * HQ == H, "H must be 4 * HQ");
         assert!(ZQ == EB + HQ, "ZQ must be EB + HQ ([e; h])");
         assert!(4 * OB >= O && 4 * OB < O + 4, "OB must be ceil(O / 4)");
+        assert!(
+            F::INPUT_SHIFT >= 1 && F::INPUT_SHIFT <= 31,
+            "input index shift out of 1..=31"
+        );
+        let s = F::GATE_SHIFTS;
+        assert!(
+            s[0] >= 1 && s[0] <= 31 && s[1] >= 1 && s[1] <= 31,
+            "gate index shift out of 1..=31"
+        );
+        assert!(
+            s[2] >= 1 && s[2] <= 31 && s[3] >= 1 && s[3] <= 31,
+            "gate index shift out of 1..=31"
+        );
     };
     /// Sizes.
     pub const DIMS: QuantDims = QuantDims {
@@ -469,19 +498,26 @@ impl<
     };
     /// Multiply-accumulates per step (without padding).
     pub const MACS: u32 = (4 * EB * I + 4 * H * (4 * EB + H) + O * H) as u32;
+    /// Whether the step runs the fused kernel `dsp::lstm_small_i16` on a target with the
+    /// DSP extension: int16 weights, `[e; h]` in at most 8 quads, at most 2 input quads,
+    /// at most 4 outputs.
+    pub const FUSED: bool = <F::Weights as WeightFormat>::INT16_PAIRS
+        && ZQ <= dsp::SMALL_MAX_Z_QUADS
+        && IQ <= dsp::SMALL_MAX_INPUT_QUADS
+        && OB == 1;
 
     /// The network as a shape-erased view of its own arrays (no copy).
-    pub fn view(&self) -> QuantView<'_, F> {
+    pub fn view(&self) -> QuantView<'_, F::Weights> {
         QuantView {
             dims: Self::DIMS,
             input_mean: &self.input_mean,
             input_scale: &self.input_scale,
             in_w: self.in_w.as_flattened(),
             in_bias: &self.in_bias,
-            in_requant: &self.in_requant,
+            in_shift: F::INPUT_SHIFT,
             gate_w: self.gate_w.as_flattened(),
             gate_bias: &self.gate_bias,
-            gate_requant: &self.gate_requant,
+            gate_shift: F::GATE_SHIFTS,
             out_w: self.out_w.as_flattened(),
             out_scale: &self.out_scale,
             out_offset: &self.out_offset,
@@ -494,8 +530,34 @@ impl<
     pub fn step(&self, state: &mut QuantState<ZQ, H>, input: &[f32; I]) -> [f32; O] {
         let () = Self::SHAPE;
         let mut xq = [[0u32; 2]; IQ];
-        let mut h_new = [[0u32; 2]; HQ];
         let mut out = [0.0f32; O];
+        if Self::FUSED {
+            let v = self.view();
+            let pairs = <F::Weights as WeightFormat>::int16_pairs;
+            if let (Some(in_w), Some(gate_w), Some(out_w)) =
+                (pairs(v.in_w), pairs(v.gate_w), pairs(v.out_w))
+            {
+                v.quantise_input(&mut xq, input);
+                let acc = dsp::lstm_small_i16::<F, IQ, EB, H, ZQ, O>(
+                    &xq,
+                    in_w,
+                    &self.in_bias,
+                    gate_w,
+                    &self.gate_bias,
+                    out_w,
+                    state,
+                );
+                if let (Some(a), Some(s), Some(off)) =
+                    (acc, self.out_scale.first(), self.out_offset.first())
+                {
+                    for (r, y) in out.iter_mut().enumerate().take(4) {
+                        *y = a[r] as f32 * s[r] + off[r];
+                    }
+                    return out;
+                }
+            }
+        }
+        let mut h_new = [[0u32; 2]; HQ];
         self.view().step(
             &mut state.z,
             &mut state.c,
