@@ -217,7 +217,7 @@ pub const SMALL_MAX_INPUT_QUADS: usize = 2;
 /// `[e; h]` one LDM of its 8 weight words and 8 SMLAD, the input words moved from
 /// s0-s15 by VMOV (about 1.19 estimated cycles per MAC), then the cell update of
 /// `quant::cell_update` (4 SSAT + LDRSH activations, SMULBB, SMULWB, QDADD, the
-/// tanh of `c`, the new `h` stored as one halfword), 19 instructions. Unrolled over
+/// tanh of `c`, the new `h` stored as one halfword), 21 instructions, about 30 estimated cycles. Unrolled over
 /// cells and quads by the assembler (`.irp`, `.if` on the const sizes), with the
 /// index shifts of `F` as immediates. The output rows read their weight words by
 /// immediate offsets (no work for the padding rows).
@@ -750,40 +750,54 @@ mod asm {
         }
     }
 
+    /// One quad of a 4-row block of [`lstm_small_i16`] (input words in `$sa`, `$sb`):
+    /// one LDM of its 8 weight words from lr, 8 SMLAD into r0-r3.
+    macro_rules! small_quad_macs {
+        ($sa:literal, $sb:literal) => {
+            concat!(
+                "ldm lr!, {{r4, r5, r6, r7, r8, r9, r10, r11}}\n",
+                "vmov r12, ", $sa, "\n",
+                "smlad r0, r4, r12, r0\n",
+                "smlad r1, r5, r12, r1\n",
+                "smlad r2, r6, r12, r2\n",
+                "smlad r3, r7, r12, r3\n",
+                "vmov r12, ", $sb, "\n",
+                "smlad r0, r8, r12, r0\n",
+                "smlad r1, r9, r12, r1\n",
+                "smlad r2, r10, r12, r2\n",
+                "smlad r3, r11, r12, r3\n",
+            )
+        };
+    }
+
+    /// `$m!(k, s2k, s2k+1)` for the 8 quads of `[e; h]` in s0-s15, as one string.
+    macro_rules! for_z_quads {
+        ($m:ident) => {
+            concat!(
+                $m!("0", "s0", "s1"),
+                $m!("1", "s2", "s3"),
+                $m!("2", "s4", "s5"),
+                $m!("3", "s6", "s7"),
+                $m!("4", "s8", "s9"),
+                $m!("5", "s10", "s11"),
+                $m!("6", "s12", "s13"),
+                $m!("7", "s14", "s15"),
+            )
+        };
+    }
+
     /// One input-layer block `b` of [`lstm_small_i16`]: bias, IQ quads, 4 tanh, the
     /// packed e pair into `$s0, $s1`.
     macro_rules! small_in_block {
         ($b:literal, $s0:literal, $s1:literal) => {
             concat!(
-                ".if {eb} > ",
-                $b,
-                "\n",
+                ".if {eb} > ", $b, "\n",
                 "vmov r12, s19\n",
                 "ldm r12!, {{r0, r1, r2, r3}}\n",
                 "vmov s19, r12\n",
-                "ldm lr!, {{r4, r5, r6, r7, r8, r9, r10, r11}}\n",
-                "vmov r12, s20\n",
-                "smlad r0, r4, r12, r0\n",
-                "smlad r1, r5, r12, r1\n",
-                "smlad r2, r6, r12, r2\n",
-                "smlad r3, r7, r12, r3\n",
-                "vmov r12, s21\n",
-                "smlad r0, r8, r12, r0\n",
-                "smlad r1, r9, r12, r1\n",
-                "smlad r2, r10, r12, r2\n",
-                "smlad r3, r11, r12, r3\n",
+                small_quad_macs!("s20", "s21"),
                 ".if {iq} > 1\n",
-                "ldm lr!, {{r4, r5, r6, r7, r8, r9, r10, r11}}\n",
-                "vmov r12, s22\n",
-                "smlad r0, r4, r12, r0\n",
-                "smlad r1, r5, r12, r1\n",
-                "smlad r2, r6, r12, r2\n",
-                "smlad r3, r7, r12, r3\n",
-                "vmov r12, s23\n",
-                "smlad r0, r8, r12, r0\n",
-                "smlad r1, r9, r12, r1\n",
-                "smlad r2, r10, r12, r2\n",
-                "smlad r3, r11, r12, r3\n",
+                small_quad_macs!("s22", "s23"),
                 ".endif\n",
                 "vmov r4, s17\n",
                 "ssat r0, #13, r0, asr #{si}\n",
@@ -796,41 +810,17 @@ mod asm {
                 "ldrsh r3, [r4, r3, lsl #1]\n",
                 "pkhbt r0, r0, r1, lsl #16\n",
                 "pkhbt r2, r2, r3, lsl #16\n",
-                "vmov ",
-                $s0,
-                ", ",
-                $s1,
-                ", r0, r2\n",
+                "vmov ", $s0, ", ", $s1, ", r0, r2\n",
                 ".endif\n",
             )
         };
     }
 
     /// One quad `p` of `[e; h]` (words in `$sa`, `$sb`) of a gate block of
-    /// [`lstm_small_i16`]: one LDM of 8 weight words, 8 SMLAD.
+    /// [`lstm_small_i16`].
     macro_rules! small_gate_quad {
         ($p:literal, $sa:literal, $sb:literal) => {
-            concat!(
-                ".if {zq} > ",
-                $p,
-                "\n",
-                "ldm lr!, {{r4, r5, r6, r7, r8, r9, r10, r11}}\n",
-                "vmov r12, ",
-                $sa,
-                "\n",
-                "smlad r0, r4, r12, r0\n",
-                "smlad r1, r5, r12, r1\n",
-                "smlad r2, r6, r12, r2\n",
-                "smlad r3, r7, r12, r3\n",
-                "vmov r12, ",
-                $sb,
-                "\n",
-                "smlad r0, r8, r12, r0\n",
-                "smlad r1, r9, r12, r1\n",
-                "smlad r2, r10, r12, r2\n",
-                "smlad r3, r11, r12, r3\n",
-                ".endif\n",
-            )
+            concat!(".if {zq} > ", $p, "\n", small_quad_macs!($sa, $sb), ".endif\n")
         };
     }
 
@@ -898,28 +888,14 @@ mod asm {
                 "add r1, r6, #{h_base}",
                 "vldmia r1, {{s{h0}-s{h1}}}",
                 "mov lr, r2",
-                small_in_block!("0", "s0", "s1"),
-                small_in_block!("1", "s2", "s3"),
-                small_in_block!("2", "s4", "s5"),
-                small_in_block!("3", "s6", "s7"),
-                small_in_block!("4", "s8", "s9"),
-                small_in_block!("5", "s10", "s11"),
-                small_in_block!("6", "s12", "s13"),
-                small_in_block!("7", "s14", "s15"),
+                for_z_quads!(small_in_block),
                 "vmov lr, s24",
                 ".irp j, 0,1,2,3,4,5,6,7,8,9,10,11,12,13,14,15,16,17,18,19,20,21,22,23,24,25,26,27,28,29,30,31",
                 ".if \\j < {h}",
                 "vmov r12, s25",
                 "ldm r12!, {{r0, r1, r2, r3}}",
                 "vmov s25, r12",
-                small_gate_quad!("0", "s0", "s1"),
-                small_gate_quad!("1", "s2", "s3"),
-                small_gate_quad!("2", "s4", "s5"),
-                small_gate_quad!("3", "s6", "s7"),
-                small_gate_quad!("4", "s8", "s9"),
-                small_gate_quad!("5", "s10", "s11"),
-                small_gate_quad!("6", "s12", "s13"),
-                small_gate_quad!("7", "s14", "s15"),
+                for_z_quads!(small_gate_quad),
                 "vmov r4, r5, s16, s17",
                 "vmov r6, s18",
                 "ssat r0, #13, r0, asr #{s0}",
