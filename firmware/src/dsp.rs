@@ -756,12 +756,16 @@ mod asm {
         ($sa:literal, $sb:literal) => {
             concat!(
                 "ldm lr!, {{r4, r5, r6, r7, r8, r9, r10, r11}}\n",
-                "vmov r12, ", $sa, "\n",
+                "vmov r12, ",
+                $sa,
+                "\n",
                 "smlad r0, r4, r12, r0\n",
                 "smlad r1, r5, r12, r1\n",
                 "smlad r2, r6, r12, r2\n",
                 "smlad r3, r7, r12, r3\n",
-                "vmov r12, ", $sb, "\n",
+                "vmov r12, ",
+                $sb,
+                "\n",
                 "smlad r0, r8, r12, r0\n",
                 "smlad r1, r9, r12, r1\n",
                 "smlad r2, r10, r12, r2\n",
@@ -791,7 +795,9 @@ mod asm {
     macro_rules! small_in_block {
         ($b:literal, $s0:literal, $s1:literal) => {
             concat!(
-                ".if {eb} > ", $b, "\n",
+                ".if {eb} > ",
+                $b,
+                "\n",
                 "vmov r12, s19\n",
                 "ldm r12!, {{r0, r1, r2, r3}}\n",
                 "vmov s19, r12\n",
@@ -810,7 +816,11 @@ mod asm {
                 "ldrsh r3, [r4, r3, lsl #1]\n",
                 "pkhbt r0, r0, r1, lsl #16\n",
                 "pkhbt r2, r2, r3, lsl #16\n",
-                "vmov ", $s0, ", ", $s1, ", r0, r2\n",
+                "vmov ",
+                $s0,
+                ", ",
+                $s1,
+                ", r0, r2\n",
                 ".endif\n",
             )
         };
@@ -820,7 +830,13 @@ mod asm {
     /// [`lstm_small_i16`].
     macro_rules! small_gate_quad {
         ($p:literal, $sa:literal, $sb:literal) => {
-            concat!(".if {zq} > ", $p, "\n", small_quad_macs!($sa, $sb), ".endif\n")
+            concat!(
+                ".if {zq} > ",
+                $p,
+                "\n",
+                small_quad_macs!($sa, $sb),
+                ".endif\n"
+            )
         };
     }
 

@@ -10,9 +10,9 @@
 //! estimated cycles per step of the per-joint network's 96 activations, a sixth of what
 //! its cycle goal leaves beside the multiply-accumulates. The finer table keeps the
 //! worst-case error within 33 LSB of Q0.15 for tanh and 12 for the sigmoid (11 of them
-//! its saturation beyond +-8, as before; the
-//! `*_error_bound` tests; an interpolated 1025-entry table had 4), and the exporter's
-//! accuracy report measures what that costs on the compensated torque.
+//! its saturation beyond +-8, as before; the `*_error_bound` tests; an interpolated
+//! 1025-entry table had 4), and the exporter's accuracy report measures what that costs
+//! on the compensated torque.
 //!
 //! The tables are written by `build.rs` with `libm` (the same bits on every build
 //! machine) and checked against the f64 formula by `tables_match_f64`. Both end flat
@@ -74,12 +74,13 @@ mod tests {
 
     #[test]
     fn tables_match_f64() {
-        for k in 0..TABLE_LEN {
+        let rows = ACT_TABLES[SIGMOID].iter().zip(&ACT_TABLES[TANH]);
+        for (k, (&sig, &tanh)) in rows.enumerate() {
             let x = (k as f64 - 4096.0 + 0.5) / 512.0;
             let s = ((sigmoid(x) * 32768.0).round() as i32).clamp(0, 32767);
             let t = ((x.tanh() * 32768.0).round() as i32).clamp(-32767, 32767);
-            assert_eq!(ACT_TABLES[SIGMOID][k] as i32, s, "sigmoid {k}");
-            assert_eq!(ACT_TABLES[TANH][k] as i32, t, "tanh {k}");
+            assert_eq!(sig as i32, s, "sigmoid {k}");
+            assert_eq!(tanh as i32, t, "tanh {k}");
         }
     }
 
