@@ -125,7 +125,7 @@ pub fn host_lstm() -> Vec<Record> {
 }
 
 /// The host's computation of a quantised-kernel suite (`lstm_f32`, `lstm_int16`,
-/// `lstm_int8`): the golden model streamed over `firmware::quant::golden::STEPS` steps.
+/// `lstm_int8`, `lstm_int16_layer`): the golden model streamed over `firmware::quant::golden::STEPS` steps.
 pub fn host_quant(g: GoldenModel) -> Vec<Record> {
     let n = g.outputs();
     let mut out = Vec::with_capacity(STEPS * n);

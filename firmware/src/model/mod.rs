@@ -204,11 +204,19 @@ pub enum GoldenModel {
     Int16,
     /// [`golden_int8`].
     Int8,
+    /// [`bench_paper_int16`]: the paper-size int16 network, too large for the fused
+    /// kernel, so this suite covers the layer kernel and the Rust cell update.
+    Int16Layer,
 }
 
 impl GoldenModel {
     /// All, in report order.
-    pub const ALL: [GoldenModel; 3] = [GoldenModel::F32, GoldenModel::Int16, GoldenModel::Int8];
+    pub const ALL: [GoldenModel; 4] = [
+        GoldenModel::F32,
+        GoldenModel::Int16,
+        GoldenModel::Int8,
+        GoldenModel::Int16Layer,
+    ];
 
     /// Suite name in the QEMU report.
     pub const fn name(self) -> &'static str {
@@ -216,6 +224,7 @@ impl GoldenModel {
             GoldenModel::F32 => "lstm_f32",
             GoldenModel::Int16 => "lstm_int16",
             GoldenModel::Int8 => "lstm_int8",
+            GoldenModel::Int16Layer => "lstm_int16_layer",
         }
     }
 
@@ -230,6 +239,7 @@ impl GoldenModel {
             GoldenModel::F32 => golden_f32::OUTPUTS,
             GoldenModel::Int16 => golden_int16::OUTPUTS,
             GoldenModel::Int8 => golden_int8::OUTPUTS,
+            GoldenModel::Int16Layer => bench_paper_int16::OUTPUTS,
         }
     }
 
@@ -239,6 +249,10 @@ impl GoldenModel {
             GoldenModel::F32 => (golden_f32::SELF_CHECK_STEPS, golden_f32::SELF_CHECK_FNV),
             GoldenModel::Int16 => (golden_int16::SELF_CHECK_STEPS, golden_int16::SELF_CHECK_FNV),
             GoldenModel::Int8 => (golden_int8::SELF_CHECK_STEPS, golden_int8::SELF_CHECK_FNV),
+            GoldenModel::Int16Layer => (
+                bench_paper_int16::SELF_CHECK_STEPS,
+                bench_paper_int16::SELF_CHECK_FNV,
+            ),
         }
     }
 
@@ -248,6 +262,7 @@ impl GoldenModel {
             GoldenModel::F32 => stream_model!(golden_f32, steps, emit),
             GoldenModel::Int16 => stream_model!(golden_int16, steps, emit),
             GoldenModel::Int8 => stream_model!(golden_int8, steps, emit),
+            GoldenModel::Int16Layer => stream_model!(bench_paper_int16, steps, emit),
         }
     }
 }
