@@ -177,13 +177,7 @@ impl ObservationModel for Subset<'_> {
 
 fn subset_floors(restarts: usize, evals: usize) {
     use model_export::excite::optimise::final_score;
-    let robot = Robot::load(std::path::Path::new(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/robots/default.toml"
-    )))
-    .unwrap()
-    .default_paper_selection();
-    let model = RobotObservation::new(robot).unwrap();
+    let model = RobotObservation::new(default_robot().default_paper_selection()).unwrap();
     let base = model.base();
     let names: Vec<String> = base
         .independent
@@ -279,13 +273,7 @@ fn friction_floor(lim: model_export::excite::JointLimits, restarts: usize, evals
 /// scoring samples, one restart) against random per-joint draws with seeds 0..200 instead of
 /// the test's single seed 52: how often each of its three assertions holds.
 fn id_seeds() {
-    let robot = Robot::load(std::path::Path::new(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/robots/default.toml"
-    )))
-    .unwrap()
-    .default_paper_selection();
-    let model = RobotObservation::new(robot).unwrap();
+    let model = RobotObservation::new(default_robot().default_paper_selection()).unwrap();
     let limits = joint_limits(model.robot(), &LimitOverrides::default()).unwrap();
     let family = FourierFamily::new(10.0, 5, &[0.0; 3], &limits, &[], 1000.0).unwrap();
     let settings = ExcitationSettings {
@@ -338,6 +326,15 @@ fn id_seeds() {
     );
 }
 
+/// The built-in default robot (`robots/default.toml`).
+fn default_robot() -> Robot {
+    Robot::load(std::path::Path::new(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/robots/default.toml"
+    )))
+    .unwrap()
+}
+
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
     if args.first().map(String::as_str) == Some("friction") {
@@ -372,11 +369,7 @@ fn main() {
     } else {
         vec!["condition".into(), "scaled".into(), "logdet".into()]
     };
-    let robot = Robot::load(std::path::Path::new(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/robots/default.toml"
-    )))
-    .unwrap();
+    let robot = default_robot();
     let robot = if which == "all" {
         let mut r = robot;
         r.model_all_joints();
