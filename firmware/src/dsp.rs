@@ -198,6 +198,10 @@ pub fn matvec4_f32(out: &mut [[f32; 4]], w: &[[f32; 4]], x: &[f32]) {
     }
 }
 
+/// Whether this build runs the assembly kernels (`cfg(fw_dsp_asm)`), else their portable
+/// twins.
+pub const ASM: bool = cfg!(fw_dsp_asm);
+
 /// Largest `[e; h]` (quads) of [`lstm_small_i16`]: 16 words, held in s0-s15.
 pub const SMALL_MAX_Z_QUADS: usize = 8;
 /// Largest input (quads) of [`lstm_small_i16`]: 4 words, held in s20-s23.

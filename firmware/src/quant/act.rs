@@ -34,6 +34,11 @@ pub const TANH: usize = 1;
 
 const HALF: i32 = (TABLE_LEN / 2) as i32;
 
+/// Whether `shift` is a valid index shift (`1..=31`: what `SSAT ..., ASR #shift` encodes).
+pub const fn shift_fits(shift: u32) -> bool {
+    shift >= 1 && shift <= 31
+}
+
 /// The table index of `acc * 2^-(shift + 9)`: `sat13(acc >> shift)`, `-4096..=4095`.
 #[inline(always)]
 pub fn index(acc: i32, shift: u32) -> i32 {

@@ -266,11 +266,10 @@ impl<F: WeightFormat> QuantView<'_, F> {
         if !shape_ok {
             return Some("dims");
         }
-        let shift_ok = |s: u32| (1..=31).contains(&s);
-        if !shift_ok(self.in_shift) {
+        if !act::shift_fits(self.in_shift) {
             return Some("in_shift");
         }
-        if !self.gate_shift.iter().all(|&s| shift_ok(s)) {
+        if !self.gate_shift.iter().all(|&s| act::shift_fits(s)) {
             return Some("gate_shift");
         }
         lens.iter().find(|(_, e, a)| e != a).map(|(n, _, _)| *n)
@@ -300,17 +299,19 @@ impl<F: WeightFormat> QuantView<'_, F> {
     #[inline(always)]
     pub fn output(&self, h: &[[u32; 2]], out: &mut [f32]) {
         let hq = (self.dims.hidden / 4).max(1);
-        let mut rows = out.iter_mut();
-        let outs = self
-            .out_w
-            .chunks_exact(hq)
-            .zip(self.out_scale.iter().zip(self.out_offset));
-        for (w, (s, off)) in outs {
-            let a = F::dot4([0; 4], w, h);
-            for r in 0..4 {
-                if let Some(y) = rows.next() {
-                    *y = a[r] as f32 * s[r] + off[r];
-                }
+        let blocks = self.out_w.chunks_exact(hq).zip(out.chunks_mut(4));
+        for (b, (w, rows)) in blocks.enumerate() {
+            self.denormalise(b, F::dot4([0; 4], w, h), rows);
+        }
+    }
+
+    /// Output block `b` from its row accumulators: `y = acc * scale + offset` (f32)
+    /// into `rows` (at most 4; padding rows are not written).
+    #[inline(always)]
+    pub fn denormalise(&self, b: usize, acc: [i32; 4], rows: &mut [f32]) {
+        if let (Some(s), Some(off)) = (self.out_scale.get(b), self.out_offset.get(b)) {
+            for ((y, a), (s, off)) in rows.iter_mut().zip(acc).zip(s.iter().zip(off)) {
+                *y = a as f32 * s + off;
             }
         }
     }
@@ -474,16 +475,15 @@ impl<
         assert!(ZQ == EB + HQ, "ZQ must be EB + HQ ([e; h])");
         assert!(4 * OB >= O && 4 * OB < O + 4, "OB must be ceil(O / 4)");
         assert!(
-            F::INPUT_SHIFT >= 1 && F::INPUT_SHIFT <= 31,
+            act::shift_fits(F::INPUT_SHIFT),
             "input index shift out of 1..=31"
         );
         let s = F::GATE_SHIFTS;
         assert!(
-            s[0] >= 1 && s[0] <= 31 && s[1] >= 1 && s[1] <= 31,
-            "gate index shift out of 1..=31"
-        );
-        assert!(
-            s[2] >= 1 && s[2] <= 31 && s[3] >= 1 && s[3] <= 31,
+            act::shift_fits(s[0])
+                && act::shift_fits(s[1])
+                && act::shift_fits(s[2])
+                && act::shift_fits(s[3]),
             "gate index shift out of 1..=31"
         );
     };
@@ -498,10 +498,11 @@ impl<
     };
     /// Multiply-accumulates per step (without padding).
     pub const MACS: u32 = (4 * EB * I + 4 * H * (4 * EB + H) + O * H) as u32;
-    /// Whether the step runs the fused kernel `dsp::lstm_small_i16` on a target with the
-    /// DSP extension: int16 weights, `[e; h]` in at most 8 quads, at most 2 input quads,
+    /// Whether the step runs the fused kernel `dsp::lstm_small_i16`: on a target with the
+    /// DSP extension, int16 weights, `[e; h]` in at most 8 quads, at most 2 input quads,
     /// at most 4 outputs.
-    pub const FUSED: bool = <F::Weights as WeightFormat>::INT16_PAIRS
+    pub const FUSED: bool = dsp::ASM
+        && <F::Weights as WeightFormat>::INT16_PAIRS
         && ZQ <= dsp::SMALL_MAX_Z_QUADS
         && IQ <= dsp::SMALL_MAX_INPUT_QUADS
         && OB == 1;
@@ -547,12 +548,8 @@ impl<
                     out_w,
                     state,
                 );
-                if let (Some(a), Some(s), Some(off)) =
-                    (acc, self.out_scale.first(), self.out_offset.first())
-                {
-                    for (r, y) in out.iter_mut().enumerate().take(4) {
-                        *y = a[r] as f32 * s[r] + off[r];
-                    }
+                if let Some(a) = acc {
+                    v.denormalise(0, a, &mut out);
                     return out;
                 }
             }
