@@ -220,8 +220,9 @@ pub const SMALL_MAX_INPUT_QUADS: usize = 2;
 /// Per cell (block `j` of rows `i, f, g, o`): the bias by one LDM, then per quad of
 /// `[e; h]` one LDM of its 8 weight words and 8 SMLAD, the input words moved from
 /// s0-s15 by VMOV (about 1.19 estimated cycles per MAC), then the cell update of
-/// `quant::cell_update` (4 SSAT + LDRSH activations, SMULBB, SMULWB, QDADD, the
-/// tanh of `c`, the new `h` stored as one halfword), 21 instructions, about 30 estimated cycles. Unrolled over
+/// `quant::cell_update` (4 SSAT + LDRSH activations, the int16 `c` by LDRSH, SMLABB,
+/// SMULBB, ADD, SSAT, STRH, the tanh of `c`, the new `h` stored as one halfword),
+/// 22 instructions. Unrolled over
 /// cells and quads by the assembler (`.irp`, `.if` on the const sizes), with the
 /// index shifts of `F` as immediates. The output rows read their weight words by
 /// immediate offsets (no work for the padding rows).
@@ -278,7 +279,7 @@ pub fn lstm_small_i16<
         // quads of `in_w`, EB biases, H * ZQ quads of `gate_w`, H biases, the first
         // O rows of H / 4 quads of `out_w`, both activation tables within their 8192
         // entries (indices saturate to -4096..=4095 around the middle), reads the h
-        // words and reads and writes the c words and h halfwords of `state`
+        // words and reads and writes the c and h halfwords of `state`
         // (`repr(C)`: z at 0, c at 8 * ZQ); it writes only the declared registers,
         // r6/r7 (saved and restored on the stack) and the flags.
         Some(unsafe { asm::lstm_small_i16::<F, IQ, EB, H, ZQ, O>(&args) })
@@ -926,12 +927,13 @@ mod asm {
                 "ldrsh r1, [r4, r1, lsl #1]",
                 "ldrsh r2, [r5, r2, lsl #1]",
                 "ldrsh r3, [r4, r3, lsl #1]",
+                "ldrsh r8, [r6, #({c_off} + 2 * \\j)]",
+                "mov r10, #{cr}",
                 "smulbb r0, r0, r2",
-                "ldr r8, [r6, #({c_off} + 4 * \\j)]",
-                "smulwb r9, r8, r1",
-                "asr r0, r0, #9",
-                "qdadd r8, r0, r9",
-                "str r8, [r6, #({c_off} + 4 * \\j)]",
+                "smlabb r9, r8, r1, r10",
+                "add r9, r9, r0, asr #{cig}",
+                "ssat r8, #16, r9, asr #{cf}",
+                "strh r8, [r6, #({c_off} + 2 * \\j)]",
                 "ssat r9, #13, r8, asr #{ct}",
                 "ldrsh r9, [r5, r9, lsl #1]",
                 "smulbb r3, r3, r9",
@@ -972,6 +974,9 @@ mod asm {
                 s2 = const F::GATE_SHIFTS[2],
                 s3 = const F::GATE_SHIFTS[3],
                 ct = const crate::quant::CELL_TANH_SHIFT,
+                cr = const crate::quant::CELL_ROUND,
+                cig = const crate::quant::CELL_IG_SHIFT,
+                cf = const crate::quant::ACT_FRAC_BITS,
                 inout("r0") args.as_ptr() => a0,
                 out("r1") a1,
                 out("r2") a2,

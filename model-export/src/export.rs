@@ -18,8 +18,8 @@ use firmware::quant::{
 use sha2::{Digest, Sha256};
 use std::fmt::Write as _;
 
-/// Version of the generated file's layout; bump on incompatible changes.
-pub const SCHEMA_VERSION: u32 = 2;
+/// Version of the generated file's layout and numerics: the firmware's.
+pub const SCHEMA_VERSION: u32 = firmware::model::SCHEMA_VERSION;
 
 /// Numeric precision of an exported network.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -421,7 +421,7 @@ impl<F: WeightFormat> QuantNet<F> {
         let d = self.dims;
         let v = self.view();
         let mut z = vec![[0u32; 2]; d.z_quads()];
-        let mut c = vec![0i32; d.hidden];
+        let mut c = vec![0i16; d.hidden];
         let mut xq = vec![[0u32; 2]; d.input_quads];
         let mut hn = vec![[0u32; 2]; d.hidden / 4];
         let mut acc = vec![[0i32; 4]; d.hidden];

@@ -36,8 +36,9 @@
 //! the paper's 9 -> 64 -> LSTM 64 -> 3 and the per-joint 3 -> 16 -> LSTM 16 -> 1,
 //! seeded random weights).
 
-/// Layout version of generated model files this firmware reads.
-pub const SCHEMA_VERSION: u32 = 2;
+/// Layout and numerics version of generated model files this firmware reads (3: int16
+/// Q4.11 cell state).
+pub const SCHEMA_VERSION: u32 = 3;
 
 /// Index in a compiled-in dynamics model of each compensated joint: the robot joint
 /// indices when the dynamics cover the whole arm, else (the other joints locked away at

@@ -19,7 +19,7 @@
 //! | input-layer output `e = tanh(.)` | Q0.15 | +-1 |
 //! | hidden state `h` | Q0.15 | +-1 |
 //! | gates `i, f, o` (sigmoid) and `g` (tanh) | Q0.15 | 0..1, +-1 |
-//! | cell state `c` (i32) | Q10.21 | +-1024 |
+//! | cell state `c` (i16, power-of-two scale 2^-11) | Q4.11 | +-16 |
 //! | input-layer weights | `2^-P_in` per layer | |
 //! | gate weights | `2^-P_g` per gate (`i`, `f`, `g`, `o`: the rows of one gate share it, as TFLM's per-tensor gate scales) | |
 //! | output weights | f32 scale per row | |
@@ -37,8 +37,8 @@
 //! the LSTM's two PyTorch biases into one. With `i, f, g, o` in Q0.15:
 //!
 //! ```text
-//! c' = qdadd((i * g) >> 9, (c * f) >> 16)   // SMULBB, ASR, SMULWB, QDADD: Q10.21, saturating
-//! h' = (o * tanh(c')) >> 15                 // tanh index sat13(c' >> 12); SMULBB, ASR
+//! c' = sat16((c * f + 2^14 + ((i * g) >> 4)) >> 15)  // SMLABB, SMULBB, ADD ASR, SSAT: Q4.11, rounded
+//! h' = (o * tanh(c')) >> 15                         // tanh index sat13(c' >> 2); SMULBB, ASR
 //! ```
 //!
 //! The output row is `y = acc * scale_o + offset_o` in f32 (`scale_o` holds `s_o * 2^-15 *
@@ -74,8 +74,8 @@ use crate::math;
 pub const INPUT_FRAC_BITS: u32 = 12;
 /// Fraction bits of `e`, `h` and the gates (Q0.15).
 pub const ACT_FRAC_BITS: u32 = 15;
-/// Fraction bits of the cell state (Q10.21).
-pub const CELL_FRAC_BITS: u32 = 21;
+/// Fraction bits of the int16 cell state (Q4.11).
+pub const CELL_FRAC_BITS: u32 = 11;
 /// Index shift of the cell state's tanh (`CELL_FRAC_BITS - act::GRID_FRAC_BITS`).
 pub const CELL_TANH_SHIFT: u32 = CELL_FRAC_BITS - act::GRID_FRAC_BITS;
 
@@ -325,7 +325,7 @@ impl<F: WeightFormat> QuantView<'_, F> {
     pub fn step(
         &self,
         z: &mut [[u32; 2]],
-        c: &mut [i32],
+        c: &mut [i16],
         xq: &mut [[u32; 2]],
         h_new: &mut [[u32; 2]],
         acc: &mut [[i32; 4]],
@@ -363,21 +363,27 @@ impl<F: WeightFormat> QuantView<'_, F> {
     }
 }
 
+/// Right shift that brings `i * g` (Q0.30) onto the scale of `c * f` (Q4.26).
+pub const CELL_IG_SHIFT: u32 = 2 * ACT_FRAC_BITS - (CELL_FRAC_BITS + ACT_FRAC_BITS);
+/// Rounding term of the cell update's final `>> 15` (the constant of its SMLABB).
+pub const CELL_ROUND: i32 = 1 << (ACT_FRAC_BITS - 1);
+
 /// One LSTM cell from its four gate accumulators (i, f, g, o) and their index
-/// shifts: updates the Q10.21 cell state `c` and returns the Q0.15 hidden value (the
-/// instruction sequence of `dsp::lstm_small_i16`'s cell, see the module docs).
+/// shifts: updates the int16 Q4.11 cell state `c` (rounded, saturating) and returns
+/// the Q0.15 hidden value (the instruction sequence of `dsp::lstm_small_i16`'s cell,
+/// see the module docs). No intermediate can overflow: `|c * f| <= 2^30`,
+/// `|i * g| >> 4 <= 2^26`.
 #[inline(always)]
-pub fn cell_update(acc: &[i32; 4], shift: &[u32; 4], c: &mut i32) -> i16 {
+pub fn cell_update(acc: &[i32; 4], shift: &[u32; 4], c: &mut i16) -> i16 {
     let i = act::sigmoid_q15(acc[0], shift[0]) as i32;
     let f = act::sigmoid_q15(acc[1], shift[1]) as i32;
     let g = act::tanh_q15(acc[2], shift[2]) as i32;
     let o = act::sigmoid_q15(acc[3], shift[3]) as i32;
-    // SMULWB: the top 32 bits of the 48-bit product c * f.
-    let cf = ((*c as i64 * f as i64) >> 16) as i32;
-    // QDADD: sat(ig + sat(2 cf)).
-    let cn = ((i * g) >> 9).saturating_add(cf.saturating_mul(2));
+    // SMLABB (c * f + round), SMULBB (i * g), ADD with ASR, SSAT #16 with ASR #15.
+    let sum = *c as i32 * f + CELL_ROUND + ((i * g) >> CELL_IG_SHIFT);
+    let cn = (sum >> ACT_FRAC_BITS).clamp(i16::MIN as i32, i16::MAX as i32) as i16;
     *c = cn;
-    let tc = act::tanh_q15(cn, CELL_TANH_SHIFT) as i32;
+    let tc = act::tanh_q15(cn as i32, CELL_TANH_SHIFT) as i32;
     ((o * tc) >> 15) as i16
 }
 
@@ -418,7 +424,7 @@ pub struct QuantLstm<
 }
 
 /// The recurrent state of an integer network: the packed `[e; h]` vector (the `h`
-/// part is the state, the `e` part scratch), the Q10.21 cell state, and the gate
+/// part is the state, the `e` part scratch), the int16 Q4.11 cell state, and the gate
 /// accumulators as scratch (kept here so that a step need not clear `16 * H` bytes
 /// of stack; every step overwrites them before reading). `repr(C)`: the fused kernel
 /// addresses `z` and `c` from one pointer.
@@ -427,8 +433,8 @@ pub struct QuantLstm<
 pub struct QuantState<const ZQ: usize, const H: usize> {
     /// Packed `[e; h]`, Q0.15.
     pub z: [[u32; 2]; ZQ],
-    /// Cell state, Q10.21.
-    pub c: [i32; H],
+    /// Cell state, Q4.11.
+    pub c: [i16; H],
     /// Scratch: the last step's gate accumulators (no meaning between steps).
     pub acc: [[i32; 4]; H],
 }
@@ -849,5 +855,51 @@ impl<
             &mut out,
         );
         out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Gate accumulators with index shift 1: value `acc / 1024`.
+    const SHIFTS: [u32; 4] = [1; 4];
+
+    #[test]
+    fn cell_update_rounds_to_nearest_q4_11() {
+        let accs = [-9000, -2048, -300, 0, 77, 1500, 4096, 9000];
+        let cells = [i16::MIN, -20000, -2048, -1, 0, 1, 777, 16384, i16::MAX];
+        for &a in &accs {
+            for &b in &accs {
+                for &c0 in &cells {
+                    let acc = [a, b, -a / 2, b / 3];
+                    let i = act::sigmoid_q15(acc[0], 1) as f64;
+                    let f = act::sigmoid_q15(acc[1], 1) as f64;
+                    let g = act::tanh_q15(acc[2], 1) as f64;
+                    // c' in Q4.11 units, exact: c f / 2^15 + i g / 2^19.
+                    let exact = c0 as f64 * f / 32768.0 + i * g / 524288.0;
+                    let mut c = c0;
+                    cell_update(&acc, &SHIFTS, &mut c);
+                    let want = exact.clamp(i16::MIN as f64, i16::MAX as f64);
+                    assert!(
+                        (c as f64 - want).abs() <= 0.5 + 1.0 / 32768.0,
+                        "c {c0}, acc {acc:?}: {c} vs {exact}"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn cell_state_saturates_at_the_q4_11_range() {
+        // i, f, o ~ 1 and g ~ +-1 push c past +-16.
+        for (g_acc, end) in [(9000, i16::MAX), (-9000, i16::MIN)] {
+            let mut c = end;
+            let h = cell_update(&[9000, 9000, g_acc, 9000], &SHIFTS, &mut c);
+            assert_eq!(c, end);
+            let o_tanh = act::sigmoid_q15(9000, 1) as i32
+                * act::tanh_q15(end as i32, CELL_TANH_SHIFT) as i32;
+            assert_eq!(h as i32, o_tanh >> 15);
+        }
     }
 }

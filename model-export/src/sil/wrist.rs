@@ -89,7 +89,7 @@ pub enum HostState {
     /// int16: `z`, `c`, quantised input, new `h`, gate accumulators.
     Int16(
         Vec<[u32; 2]>,
-        Vec<i32>,
+        Vec<i16>,
         Vec<[u32; 2]>,
         Vec<[u32; 2]>,
         Vec<[i32; 4]>,
