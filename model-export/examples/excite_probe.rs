@@ -13,7 +13,9 @@
 //!
 //! `... --example excite_probe -- friction [restarts] [evaluations]`: the smallest unit-column
 //! condition number of one wrist joint's friction block `[q̇, sign q̇]` over the family (a lower
-//! bound for the full unit-column condition number of any member).
+//! bound for the full unit-column condition number of any member). `... -- floors [restarts]
+//! [evaluations]`: the smallest condition numbers found for the wrist's friction and
+//! gravity + friction column subsets (lower bounds for the full `W` of the same trajectory).
 
 use model_export::excite::objective::observation_matrix;
 use model_export::excite::optimise::baseline_seed;
@@ -269,63 +271,6 @@ fn friction_floor(lim: model_export::excite::JointLimits, restarts: usize, evals
     );
 }
 
-/// The identification test's comparison (tests/excite_robot.rs: 1500-evaluation design, 100
-/// scoring samples, one restart) against random per-joint draws with seeds 0..200 instead of
-/// the test's single seed 52: how often each of its three assertions holds.
-fn id_seeds() {
-    let model = RobotObservation::new(default_robot().default_paper_selection()).unwrap();
-    let limits = joint_limits(model.robot(), &LimitOverrides::default()).unwrap();
-    let family = FourierFamily::new(10.0, 5, &[0.0; 3], &limits, &[], 1000.0).unwrap();
-    let settings = ExcitationSettings {
-        restarts: 1,
-        evaluations_per_restart: 1500,
-        objective_samples: 100,
-        ..ExcitationSettings::default()
-    };
-    let opt = metrics(
-        &model,
-        &design(&model, family.clone(), &settings)
-            .unwrap()
-            .trajectory,
-    );
-    let trace = |s: &[f64]| s.iter().map(|x| x * x).sum::<f64>();
-    let worst = |s: &[f64]| s.iter().copied().fold(0.0, f64::max);
-    let (mut a, mut b, mut c, mut all) = (0, 0, 0, 0);
-    let mut tr_ratio = Vec::new();
-    let mut w_ratio = Vec::new();
-    let seeds = 200;
-    for seed in 0..seeds {
-        let r = metrics(
-            &model,
-            &random_feasible(&family, seed, BaselineScaling::PerJoint),
-        );
-        let smaller = opt.std.iter().zip(&r.std).filter(|(o, x)| o < x).count();
-        let (pa, pb, pc) = (
-            trace(&opt.std) < trace(&r.std),
-            worst(&opt.std) < worst(&r.std),
-            2 * smaller > opt.std.len(),
-        );
-        a += pa as usize;
-        b += pb as usize;
-        c += pc as usize;
-        all += (pa && pb && pc) as usize;
-        tr_ratio.push(trace(&r.std) / trace(&opt.std));
-        w_ratio.push(worst(&r.std) / worst(&opt.std));
-        if seed == 52 {
-            println!(
-                "seed 52: variance-sum ratio {:.3}, largest-std ratio {:.3}, {smaller}/23 more precise",
-                trace(&r.std) / trace(&opt.std),
-                worst(&r.std) / worst(&opt.std)
-            );
-        }
-    }
-    println!(
-        "random per-joint seeds 0..{seeds}: trace smaller {a}, largest std smaller {b}, most parameters more precise {c}, all three {all}; median variance-sum ratio {:.3}, median largest-std ratio {:.3}",
-        median(tr_ratio),
-        median(w_ratio)
-    );
-}
-
 /// The built-in default robot (`robots/default.toml`).
 fn default_robot() -> Robot {
     Robot::load(std::path::Path::new(concat!(
@@ -355,10 +300,6 @@ fn main() {
         let r: usize = args.get(1).and_then(|s| s.parse().ok()).unwrap_or(4);
         let e: usize = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(6000);
         subset_floors(r, e);
-        return;
-    }
-    if args.first().map(String::as_str) == Some("idseeds") {
-        id_seeds();
         return;
     }
     let which = args.first().map(String::as_str).unwrap_or("wrist");
