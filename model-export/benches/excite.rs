@@ -5,7 +5,9 @@
 //! condition number `cond(W)` and the unit-column one, the optimised value against the median
 //! and best of the default random baseline (20 seeded random feasible trajectories of the same
 //! family), once with every joint scaled onto its own tightest limit (`per-joint`, generous)
-//! and once with one scale for all joints (`common`). Targets: 3 joints < 60 s, 6 joints < 5 min.
+//! and once with one scale for all joints (`common`); each at the robot's own limits and at
+//! identification limits (1 rad/s, 3 rad/s² on every joint). Targets: 3 joints < 60 s,
+//! 6 joints < 5 min.
 //!
 //! Robot: `model-export/robots/default.toml` if present, else the UR10e URDF under
 //! `$DATASETS_DIR` (default `../shared/datasets`), with 8 rad/s² acceleration limits.
@@ -44,8 +46,9 @@ fn main() {
     };
     println!("robot: {}", robot.source.display());
     println!(
-        "{:<10} {:>6} {:>4} {:>6} {:>7} {:>7} {:<10} {:<10} {:>9} {:>9} {:>9} {:>7} {:>7}",
+        "{:<10} {:<8} {:>6} {:>4} {:>6} {:>7} {:>7} {:<10} {:<10} {:>9} {:>9} {:>9} {:>7} {:>7}",
         "case",
+        "limits",
         "joints",
         "dim",
         "params",
@@ -61,12 +64,21 @@ fn main() {
     );
     let mut six = robot.clone();
     six.model_all_joints();
-    for (label, r) in [
+    let slow = LimitOverrides {
+        qd_max_rad_s: Some(1.0),
+        qdd_max_rad_s2: Some(3.0),
+        ..LimitOverrides::default()
+    };
+    let cases = [
         ("wrist 4-6", robot.default_paper_selection()),
         ("all 6", six),
-    ] {
-        let model = RobotObservation::new(r).expect("base parameters");
-        let limits = joint_limits(model.robot(), &overrides).expect("limits");
+    ];
+    for ((label, r), (limit_label, o)) in cases
+        .iter()
+        .flat_map(|c| [(c, ("robot", &overrides)), (c, ("1, 3", &slow))])
+    {
+        let model = RobotObservation::new(r.clone()).expect("base parameters");
+        let limits = joint_limits(model.robot(), o).expect("limits");
         let rest = vec![0.0; limits.len()];
         let settings = ExcitationSettings::default();
         let family = FourierFamily::new(
@@ -97,8 +109,9 @@ fn main() {
                 ),
             ] {
                 println!(
-                    "{:<10} {:>6} {:>4} {:>6} {:>7} {:>7.1} {:<10} {:<10} {:>9.2} {:>9.2} {:>9.2} {:>7.2} {:>7.2}",
+                    "{:<10} {:<8} {:>6} {:>4} {:>6} {:>7} {:>7.1} {:<10} {:<10} {:>9.2} {:>9.2} {:>9.2} {:>7.2} {:>7.2}",
                     label,
+                    limit_label,
                     limits.len(),
                     family.dimension(),
                     model.base().count(),
