@@ -64,19 +64,16 @@ fn main() {
     );
     let mut six = robot.clone();
     six.model_all_joints();
-    let slow = LimitOverrides {
-        qd_max_rad_s: Some(1.0),
-        qdd_max_rad_s2: Some(3.0),
-        ..LimitOverrides::default()
-    };
     let cases = [
         ("wrist 4-6", robot.default_paper_selection()),
         ("all 6", six),
     ];
-    for ((label, r), (limit_label, o)) in cases
-        .iter()
-        .flat_map(|c| [(c, ("robot", &overrides)), (c, ("1, 3", &slow))])
-    {
+    for ((label, r), (limit_label, o)) in cases.iter().flat_map(|c| {
+        [
+            (c, ("robot", &overrides)),
+            (c, ("1, 3", &LimitOverrides::IDENTIFICATION)),
+        ]
+    }) {
         let model = RobotObservation::new(r.clone()).expect("base parameters");
         let limits = joint_limits(model.robot(), o).expect("limits");
         let rest = vec![0.0; limits.len()];

@@ -5,8 +5,8 @@
 
 use model_export::excite::robot_model::{LimitOverrides, RobotObservation, joint_limits};
 use model_export::excite::{
-    BaselineScaling, ExcitationSettings, FourierFamily, JointLimits, design, random_baseline,
-    random_feasible,
+    BaselineScaling, ExcitationDesign, ExcitationSettings, FourierFamily, JointLimits,
+    PopulationStats, design, random_baseline, random_feasible,
 };
 use model_export::robot::Robot;
 use std::path::PathBuf;
@@ -67,13 +67,14 @@ fn assert_admissible(tr: &model_export::excite::ExcitationTrajectory, lim: &[Joi
     }
 }
 
-/// Designs with 1 × 1500 evaluations under `overrides` and requires the optimised `cond(W)` to
-/// beat the median of each random baseline (per-joint, common scaling) by `factors`.
-fn check(robot: Robot, overrides: &LimitOverrides, label: &str, factors: [f64; 2]) {
-    let model = RobotObservation::new(robot).unwrap();
+/// The tests' small design (1 run × 1500 evaluations, 100 scoring samples, rest at zero)
+/// under `overrides`, checked admissible: its limits, family and design.
+fn small_design(
+    model: &RobotObservation,
+    overrides: &LimitOverrides,
+) -> (Vec<JointLimits>, FourierFamily, ExcitationDesign) {
     let limits: Vec<JointLimits> = joint_limits(model.robot(), overrides).unwrap();
-    let n = limits.len();
-    let rest = vec![0.0; n];
+    let rest = vec![0.0; limits.len()];
     let settings = ExcitationSettings {
         restarts: 1,
         evaluations_per_restart: 1500,
@@ -81,13 +82,21 @@ fn check(robot: Robot, overrides: &LimitOverrides, label: &str, factors: [f64; 2
         ..ExcitationSettings::default()
     };
     let family = FourierFamily::new(10.0, 5, &rest, &limits, &[], 1000.0).unwrap();
-    let d = design(&model, family.clone(), &settings).unwrap();
+    let d = design(model, family.clone(), &settings).unwrap();
     assert!(
         d.margins.iter().all(|m| m.margin >= -1e-9),
         "{:?}",
         d.margins
     );
     assert_admissible(&d.trajectory, &limits);
+    (limits, family, d)
+}
+
+/// Designs with [`small_design`] and requires the optimised `cond(W)` to beat the median of
+/// each random baseline (per-joint, common scaling) by `factors`.
+fn check(robot: Robot, overrides: &LimitOverrides, label: &str, factors: [f64; 2]) {
+    let model = RobotObservation::new(robot).unwrap();
+    let (limits, family, d) = small_design(&model, overrides);
     // The baselines: 20 seeded random feasible trajectories each, every joint on its own
     // tightest limit (generous) or one scale for all joints.
     for (scaling, factor) in BaselineScaling::ALL.into_iter().zip(factors) {
@@ -152,20 +161,9 @@ fn six_joint_design_beats_random_feasible_trajectories() {
     check(robot, &o, "6 joints", ARM_FACTORS);
 }
 
-/// Limits of a slow identification run: 1 rad/s and 3 rad/s² on every joint (the default
-/// robot's own limits are π rad/s and 12 rad/s²). The slower the run, the less a random
-/// trajectory excites inertia against gravity and friction, and the more the design gains.
-fn identification_limits() -> LimitOverrides {
-    LimitOverrides {
-        qd_max_rad_s: Some(1.0),
-        qdd_max_rad_s2: Some(3.0),
-        ..LimitOverrides::default()
-    }
-}
-
 /// How much smaller than the random population's medians the optimised trajectory's sum of
 /// variances and largest standard deviation must be at the identification limits (measured
-/// x4.34 and x3.28 with this budget).
+/// x4.30 and x3.20 with this budget).
 const TRACE_FACTOR: f64 = 3.5;
 const WORST_FACTOR: f64 = 2.5;
 
@@ -183,7 +181,12 @@ fn wrist_design_at_identification_limits_beats_random_by_a_large_factor() {
     };
     let wrist = robot.default_paper_selection();
     let label = "wrist (joints 4-6), 1 rad/s, 3 rad/s^2";
-    check(wrist, &identification_limits(), label, SLOW_WRIST_FACTORS);
+    check(
+        wrist,
+        &LimitOverrides::IDENTIFICATION,
+        label,
+        SLOW_WRIST_FACTORS,
+    );
 }
 
 #[test]
@@ -193,7 +196,12 @@ fn six_joint_design_at_identification_limits_beats_random_by_a_large_factor() {
     };
     robot.model_all_joints();
     let label = "6 joints, 1 rad/s, 3 rad/s^2";
-    check(robot, &identification_limits(), label, SLOW_ARM_FACTORS);
+    check(
+        robot,
+        &LimitOverrides::IDENTIFICATION,
+        label,
+        SLOW_ARM_FACTORS,
+    );
 }
 
 /// Identifies the wrist's base parameters from noisy torques along a trajectory (3 periods at
@@ -235,10 +243,9 @@ fn identify_along(
     (id.values, id.std, beta.iter().copied().collect())
 }
 
-/// Median of `v`.
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
+/// Median of `v` (the baselines' definition).
+fn median(v: &[f64]) -> f64 {
+    PopulationStats::of(v).median
 }
 
 /// Identification of the wrist along its optimised trajectory (1 × 1500 evaluations) and along
@@ -248,24 +255,14 @@ fn median(mut v: Vec<f64>) -> f64 {
 /// (sum of variances, its random median, largest std, its random median, parameters more
 /// precise than their random median, parameter count).
 fn wrist_identification(
+    robot: &Robot,
     overrides: &LimitOverrides,
     label: &str,
 ) -> (f64, f64, f64, f64, usize, usize) {
     use model_export::excite::optimise::baseline_seed;
-    let (robot, _) = test_robot().expect("robot");
     let model = RobotObservation::new(robot.default_paper_selection()).unwrap();
-    let limits = joint_limits(model.robot(), overrides).unwrap();
-    let rest = vec![0.0; limits.len()];
-    let settings = ExcitationSettings {
-        restarts: 1,
-        evaluations_per_restart: 1500,
-        objective_samples: 100,
-        ..ExcitationSettings::default()
-    };
-    let family = FourierFamily::new(10.0, 5, &rest, &limits, &[], 1000.0).unwrap();
-    let optimised = design(&model, family.clone(), &settings)
-        .unwrap()
-        .trajectory;
+    let (_, family, d) = small_design(&model, overrides);
+    let optimised = d.trajectory;
 
     // Noise-free data along the optimised trajectory: exact recovery.
     let (v, _, truth) = identify_along(&model, &optimised, 0.0, 1);
@@ -295,10 +292,10 @@ fn wrist_identification(
         .collect();
     let trace = |s: &[f64]| s.iter().map(|x| x * x).sum::<f64>();
     let worst = |s: &[f64]| s.iter().copied().fold(0.0, f64::max);
-    let trace_rand = median(s_rand.iter().map(|s| trace(s)).collect());
-    let worst_rand = median(s_rand.iter().map(|s| worst(s)).collect());
+    let trace_rand = median(&s_rand.iter().map(|s| trace(s)).collect::<Vec<_>>());
+    let worst_rand = median(&s_rand.iter().map(|s| worst(s)).collect::<Vec<_>>());
     let smaller = (0..s_opt.len())
-        .filter(|&p| s_opt[p] < median(s_rand.iter().map(|s| s[p]).collect()))
+        .filter(|&p| s_opt[p] < median(&s_rand.iter().map(|s| s[p]).collect::<Vec<_>>()))
         .count();
     println!(
         "wrist identification, {label}, 0.5 N*m noise: sum of variances {:.3e} (optimised) vs {:.3e} (median of 20 random feasible, x{:.2}); largest std {:.3e} vs {:.3e} (x{:.2}); {smaller}/{} parameters more precise than their random median",
@@ -322,21 +319,23 @@ fn wrist_identification(
 
 #[test]
 fn identification_along_the_optimised_trajectory_is_more_precise() {
-    let Some((_, o)) = test_robot() else {
+    let Some((robot, o)) = test_robot() else {
         return;
     };
-    let (tr_opt, tr_rand, w_opt, w_rand, smaller, p) = wrist_identification(&o, "robot's limits");
+    let (tr_opt, tr_rand, w_opt, w_rand, smaller, p) =
+        wrist_identification(&robot, &o, "robot's limits");
     assert!(tr_opt < tr_rand && w_opt < w_rand);
     assert!(2 * smaller > p, "most parameters should be more precise");
 }
 
 #[test]
 fn identification_at_identification_limits_is_much_more_precise() {
-    if test_robot().is_none() {
+    let Some((robot, _)) = test_robot() else {
         return;
-    }
+    };
+    let label = "1 rad/s, 3 rad/s^2";
     let (tr_opt, tr_rand, w_opt, w_rand, smaller, p) =
-        wrist_identification(&identification_limits(), "1 rad/s, 3 rad/s^2");
+        wrist_identification(&robot, &LimitOverrides::IDENTIFICATION, label);
     assert!(tr_opt * TRACE_FACTOR < tr_rand && w_opt * WORST_FACTOR < w_rand);
     assert!(2 * smaller > p, "most parameters should be more precise");
 }

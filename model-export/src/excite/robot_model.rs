@@ -79,6 +79,17 @@ pub struct LimitOverrides {
     pub qdd_max_rad_s2: Option<f64>,
 }
 
+impl LimitOverrides {
+    /// A slow identification run: 1 rad/s and 3 rad/s² on every joint (where random
+    /// trajectories excite inertia poorly against gravity and friction, so the design gains
+    /// most; README "Proof and figures").
+    pub const IDENTIFICATION: LimitOverrides = LimitOverrides {
+        q_max_rad: None,
+        qd_max_rad_s: Some(1.0),
+        qdd_max_rad_s2: Some(3.0),
+    };
+}
+
 /// Limits of the robot's modelled joints; an error names the joint and the missing field.
 pub fn joint_limits(robot: &Robot, o: &LimitOverrides) -> Result<Vec<JointLimits>, ExciteError> {
     robot
