@@ -13,7 +13,8 @@
 //! - SPI1 (PA5 SCK, PA6 MISO, PA7 MOSI, PA4 chip select; mode 1, 5.3 MHz): the
 //!   AS5047P encoder through `firmware::drivers::as5047p` (embedded-hal `SpiDevice`).
 //! - USART3 (PB10 TX, PB11 RX, 2 Mbaud, FIFO): the state bus, standing in for
-//!   EtherCAT; frames are `JointStateMessage::encode` (35 bytes, CRC-16).
+//!   EtherCAT; frames are `JointStateMessage::encode` (37 bytes, CRC-16), with a
+//!   session number drawn from the RNG at every start.
 //! - SysTick at `TICK_HZ`: the compensator tick (run in thread mode, so the LSTM's
 //!   time never delays the PWM interrupt) and its DWT CYCCNT measurement.
 //! - defmt over RTT (`--features board,defmt`): cycles (DWT CYCCNT, measured on the
@@ -28,9 +29,9 @@ use cortex_m::interrupt::Mutex;
 use cortex_m::peripheral::{DWT, syst::SystClkSource};
 use cortex_m_rt::{ExceptionFrame, entry, exception};
 use firmware::control::{
-    CascadeConfig, Compensator, CompensatorConfig, CurrentLoopConfig, DriveConfig, FaultFlags,
-    FrameReceiver, JointDrive, JointReference, JointState, JointStateMessage, LstmPredictor,
-    MotorParameters, SensorSample, StateLimits, SubsetModel,
+    BusClock, CascadeConfig, Compensator, CompensatorConfig, CurrentLoopConfig, DriveConfig,
+    FaultFlags, FrameReceiver, JointDrive, JointReference, JointState, JointStateMessage,
+    LstmPredictor, MotorParameters, SensorSample, StateLimits, SubsetModel,
 };
 use firmware::drivers::as5047p::{As5047p, counts_to_rad};
 use firmware::dynamics::RigidBodyModel;
@@ -89,29 +90,38 @@ fn drive_config() -> DriveConfig {
 }
 
 /// The compensator's configuration.
-fn compensator_config() -> CompensatorConfig {
-    CompensatorConfig {
-        rate_hz: TICK_HZ as f32,
-        own_joint: OWN_JOINT,
-        state_limits: StateLimits {
-            max_abs_q_rad: 6.3,
-            max_abs_qd_rad_s: 5.0,
-            max_abs_qdd_rad_s2: 200.0,
-            max_abs_tau_nm: 300.0,
-        },
-        watchdog_ticks: 3,
-        // The UART stand-in has no distributed clock: the sender-timestamp check is
-        // off (the tick-count watchdog still applies); with EtherCAT DC set ~2 ticks.
-        max_message_age_us: u32::MAX / 2,
-        max_torque_nm: 120.0,
-        max_torque_rate_nm_s: 2_000.0,
-        max_lstm_correction_nm: 30.0,
-        warmup_ticks: 10,
-        lstm_retry_ticks: 50,
-        drive_gain_nm_per_a: 1.5 * 7.0 * 0.01 * 100.0,
-        max_current_a: 12.0,
-    }
-}
+const COMPENSATOR_CONFIG: CompensatorConfig = CompensatorConfig {
+    rate_hz: TICK_HZ as f32,
+    own_joint: OWN_JOINT,
+    state_limits: StateLimits {
+        max_abs_q_rad: 6.3,
+        max_abs_qd_rad_s: 5.0,
+        max_abs_qdd_rad_s2: 200.0,
+        max_abs_tau_nm: 300.0,
+    },
+    watchdog_ticks: 3,
+    // The UART stand-in has no distributed clock: each sender's clock offset is
+    // learned when its stream starts and followed within the two HSI16 oscillators'
+    // tolerance (+-1 % each); a frame more than 3 ticks off that is stale.
+    max_message_age_us: 3 * TICK_PERIOD_US,
+    bus_clock: BusClock::FreeRunning {
+        max_rate_error_ppm: 20_000,
+    },
+    max_torque_nm: 120.0,
+    max_torque_rate_nm_s: 2_000.0,
+    max_lstm_correction_nm: 30.0,
+    warmup_ticks: 10,
+    lstm_retry_ticks: 50,
+    drive_gain_nm_per_a: 1.5 * 7.0 * 0.01 * 100.0,
+    max_current_a: 12.0,
+};
+/// The compensator tick's period, microseconds.
+const TICK_PERIOD_US: u32 = 1_000_000 / TICK_HZ;
+// The sender-timestamp check is on: a few ticks, against each sender's clock.
+const _: () = assert!(
+    COMPENSATOR_CONFIG.max_message_age_us <= 5 * TICK_PERIOD_US
+        && matches!(COMPENSATOR_CONFIG.bus_clock, BusClock::FreeRunning { .. })
+);
 
 /// Index in the compiled-in dynamics of each compensated joint.
 const MODEL_JOINTS: [usize; JOINTS] =
@@ -185,7 +195,7 @@ fn main() -> ! {
     ) else {
         cortex_m::asm::udf();
     };
-    let Ok(mut compensator) = Compensator::<JOINTS, _, _>::new(compensator_config(), model(), lstm)
+    let Ok(mut compensator) = Compensator::<JOINTS, _, _>::new(COMPENSATOR_CONFIG, model(), lstm)
     else {
         cortex_m::asm::udf();
     };
@@ -209,7 +219,7 @@ fn main() -> ! {
         }
         let start = DWT::cycle_count();
         ticks = ticks.wrapping_add(1);
-        let now_us = ticks.wrapping_mul(1_000_000 / TICK_HZ);
+        let now_us = ticks.wrapping_mul(TICK_PERIOD_US);
         // Drain the bus (bounded by the queue's capacity).
         for _ in 0..8 {
             let Some(m) = cortex_m::interrupt::free(|cs| {
@@ -226,7 +236,7 @@ fn main() -> ! {
             qdd_ref_rad_s2: 0.0,
             q_meas_rad: load(&OWN_Q_RAD),
             qd_meas_rad_s: load(&OWN_QD_RAD_S),
-            tau_meas_nm: load(&OWN_IQ_A) * compensator_config().drive_gain_nm_per_a,
+            tau_meas_nm: load(&OWN_IQ_A) * COMPENSATOR_CONFIG.drive_gain_nm_per_a,
         };
         let out = compensator.tick(&own, now_us);
         FEEDFORWARD_A.store(out.current_a.to_bits(), Ordering::Relaxed);
@@ -234,6 +244,7 @@ fn main() -> ! {
         sequence = sequence.wrapping_add(1);
         let frame = JointStateMessage {
             joint: OWN_JOINT as u8,
+            session: board.session,
             sequence,
             timestamp_us: now_us,
             state: own,
@@ -367,6 +378,8 @@ mod hw {
         pub adc: Adc,
         pub encoder_spi: EncoderSpi,
         pub bus: Bus,
+        /// This start's bus session number (from the RNG; 0 if it failed).
+        pub session: u16,
     }
 
     /// Clocks, pins, TIM1, ADC1, SPI1, USART3.
@@ -419,6 +432,19 @@ mod hw {
         rcc.apb2enr()
             .modify(|_, w| w.tim1en().set_bit().spi1en().set_bit());
         rcc.apb1enr1().modify(|_, w| w.usart3en().set_bit());
+
+        // RNG (clocked by HSI48, CLK48SEL's reset value): one number for the bus
+        // session, so that the other joints resynchronise after this board restarts.
+        rcc.crrcr().modify(|_, w| w.hsi48on().set_bit());
+        spin_until(|| rcc.crrcr().read().hsi48rdy().bit_is_set());
+        rcc.ahb2enr().modify(|_, w| w.rngen().set_bit());
+        dp.RNG.cr().modify(|_, w| w.rngen().set_bit());
+        let session = if spin_until(|| dp.RNG.sr().read().drdy().bit_is_set()) {
+            dp.RNG.dr().read().bits() as u16
+        } else {
+            0
+        };
+        dp.RNG.cr().modify(|_, w| w.rngen().clear_bit());
 
         // Pins. GPIOA: PA4 output (encoder chip select, high), PA5..7 AF5 (SPI1),
         // PA8..10 AF6 (TIM1 CH1..3). PA0, PA1 stay analog (reset state).
@@ -627,6 +653,7 @@ mod hw {
                 gpio: dp.GPIOA,
             },
             bus: Bus { usart: dp.USART3 },
+            session,
         }
     }
 

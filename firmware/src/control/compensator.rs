@@ -5,7 +5,7 @@
 //! warm-up after every reset. The result is a q-current held until the next tick.
 
 use super::faults::FaultFlags;
-use super::message::{JointState, JointStateMessage, StateLimits};
+use super::message::{JointState, JointStateMessage, SEQUENCE_WINDOW, StateLimits};
 
 /// What a predictor sees: every modelled joint's latest valid state (this joint's
 /// own from its sensors, the others' from the state bus) and, for the LSTM stage,
@@ -60,6 +60,23 @@ pub enum FeedforwardSource {
     ModelLstm,
 }
 
+/// How the compensator compares a sender's timestamp with its local bus time.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum BusClock {
+    /// One clock for the whole bus (EtherCAT distributed clocks): a timestamp must
+    /// be within `max_message_age_us` of the local bus time.
+    Synchronised,
+    /// Free-running clocks (a UART bus): each sender's clock offset is learned when
+    /// its stream (re)synchronises and then follows the measured offset by at most
+    /// `max_rate_error_ppm` of the elapsed time; a timestamp must be within
+    /// `max_message_age_us` of the local time minus that offset.
+    FreeRunning {
+        /// Largest rate difference between two joints' clocks, parts per million.
+        max_rate_error_ppm: u32,
+    },
+}
+
 /// Configuration of the compensator.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CompensatorConfig {
@@ -70,11 +87,14 @@ pub struct CompensatorConfig {
     /// Bounds on accepted joint states.
     pub state_limits: StateLimits,
     /// Watchdog: another joint's state is stale once more than this many consecutive
-    /// compensator ticks passed without a fresh message from it.
+    /// compensator ticks passed without a fresh message from it; also the ticks the
+    /// feedforward stays at zero after a sequence or session conflict.
     pub watchdog_ticks: u16,
     /// Watchdog: a message whose sender timestamp is more than this far from the
-    /// local bus time (either way) is stale, microseconds.
+    /// local bus time (either way, see `bus_clock`) is stale, microseconds.
     pub max_message_age_us: u32,
+    /// How sender timestamps are compared with the local bus time.
+    pub bus_clock: BusClock,
     /// Magnitude limit of the torque feedforward, N*m (joint side).
     pub max_torque_nm: f32,
     /// Rate limit of the torque feedforward, N*m per second.
@@ -148,10 +168,15 @@ pub struct Compensator<const J: usize, M, L> {
     lstm: L,
     dt_s: f32,
     states: [JointState; J],
+    session: [u16; J],
     last_sequence: [u16; J],
     last_timestamp_us: [u32; J],
     received: [bool; J],
     ticks_since_rx: [u16; J],
+    ticks_since_conflict: [u16; J],
+    clock_offset_us: [u32; J],
+    learn_clock: [bool; J],
+    clock_slew_us: u32,
     rx_faults: FaultFlags,
     latched: FaultFlags,
     torque_nm: f32,
@@ -171,10 +196,21 @@ impl<const J: usize, M: TorquePredictor<J>, L: TorquePredictor<J>> Compensator<J
             lstm,
             dt_s: 1.0 / config.rate_hz,
             states: [JointState::default(); J],
+            session: [0; J],
             last_sequence: [0; J],
             last_timestamp_us: [0; J],
             received: [false; J],
             ticks_since_rx: [u16::MAX; J],
+            ticks_since_conflict: [u16::MAX; J],
+            clock_offset_us: [0; J],
+            learn_clock: [true; J],
+            clock_slew_us: match config.bus_clock {
+                BusClock::Synchronised => 0,
+                // Saturating float-to-int cast: ppm of one tick period, microseconds.
+                BusClock::FreeRunning { max_rate_error_ppm } => {
+                    (max_rate_error_ppm as f32 / config.rate_hz) as u32
+                }
+            },
             rx_faults: FaultFlags::NONE,
             latched: FaultFlags::NONE,
             torque_nm: 0.0,
@@ -224,29 +260,67 @@ impl<const J: usize, M: TorquePredictor<J>, L: TorquePredictor<J>> Compensator<J
     }
 
     /// Accept another joint's state from the bus (call on reception, any time
-    /// between ticks). Rejected messages leave the last good state in place and
-    /// set a fault reported by the next tick.
+    /// between ticks). A state with a bad field or joint index is dropped
+    /// (`STATE_REJECTED`). Within a live stream (a state accepted within the last
+    /// `watchdog_ticks` ticks) a frame of the same session must advance the sequence
+    /// number by 1..=[`SEQUENCE_WINDOW`], else it is dropped; a frame of another
+    /// session (the sender rebooted) restarts the stream. Either is a conflict
+    /// (`STATE_OUT_OF_ORDER`): the feedforward is zero for the next
+    /// `watchdog_ticks` ticks. A stream that is not live accepts the next valid
+    /// frame whatever its session and sequence number.
     pub fn receive(&mut self, msg: &JointStateMessage) -> FaultFlags {
         let j = msg.joint as usize;
-        let mut f = FaultFlags::NONE;
-        if j >= J || j == self.config.own_joint || !self.config.state_limits.accepts(&msg.state) {
-            f = FaultFlags::STATE_REJECTED;
-        } else if self.received[j] && (msg.sequence.wrapping_sub(self.last_sequence[j]) as i16) <= 0
-        {
-            f = FaultFlags::STATE_OUT_OF_ORDER;
-        } else if let (Some(s), Some(seq), Some(ts), Some(rx), Some(age)) = (
+        let f = if j == self.config.own_joint || !self.config.state_limits.accepts(&msg.state) {
+            FaultFlags::STATE_REJECTED
+        } else if let (
+            Some(s),
+            Some(session),
+            Some(seq),
+            Some(ts),
+            Some(rx),
+            Some(age),
+            Some(conflict),
+            Some(learn),
+        ) = (
             self.states.get_mut(j),
+            self.session.get_mut(j),
             self.last_sequence.get_mut(j),
             self.last_timestamp_us.get_mut(j),
             self.received.get_mut(j),
             self.ticks_since_rx.get_mut(j),
+            self.ticks_since_conflict.get_mut(j),
+            self.learn_clock.get_mut(j),
         ) {
-            *s = msg.state;
-            *seq = msg.sequence;
-            *ts = msg.timestamp_us;
-            *rx = true;
-            *age = 0;
-        }
+            let live = *rx && *age <= self.config.watchdog_ticks;
+            let same_session = msg.session == *session;
+            let step = msg.sequence.wrapping_sub(*seq);
+            let in_window = (1..=SEQUENCE_WINDOW).contains(&step);
+            if live && same_session && !in_window {
+                *conflict = 0;
+                FaultFlags::STATE_OUT_OF_ORDER
+            } else {
+                *s = msg.state;
+                *session = msg.session;
+                *seq = msg.sequence;
+                *ts = msg.timestamp_us;
+                *rx = true;
+                *age = 0;
+                if live && same_session {
+                    FaultFlags::NONE
+                } else {
+                    // A (re)synchronised stream: its clock offset is learned anew.
+                    *learn = true;
+                    if live {
+                        *conflict = 0;
+                        FaultFlags::STATE_OUT_OF_ORDER
+                    } else {
+                        FaultFlags::NONE
+                    }
+                }
+            }
+        } else {
+            FaultFlags::STATE_REJECTED // joint index beyond the modelled joints
+        };
         self.rx_faults |= f;
         f
     }
@@ -268,11 +342,39 @@ impl<const J: usize, M: TorquePredictor<J>, L: TorquePredictor<J>> Compensator<J
         for j in 0..J {
             let age = self.ticks_since_rx[j];
             self.ticks_since_rx[j] = age.saturating_add(1);
+            let since_conflict = self.ticks_since_conflict[j];
+            self.ticks_since_conflict[j] = since_conflict.saturating_add(1);
             if j == own_j {
                 continue;
             }
-            let skew_us = now_us.wrapping_sub(self.last_timestamp_us[j]) as i32;
-            let too_old = skew_us.unsigned_abs() > cfg.max_message_age_us;
+            if since_conflict < cfg.watchdog_ticks {
+                faults |= FaultFlags::STATE_OUT_OF_ORDER;
+                inputs_ok = false;
+            }
+            let skew_us = now_us.wrapping_sub(self.last_timestamp_us[j]);
+            let error_us = match cfg.bus_clock {
+                BusClock::Synchronised => skew_us as i32,
+                BusClock::FreeRunning { .. } => {
+                    if self.learn_clock[j] && self.received[j] {
+                        self.clock_offset_us[j] = skew_us;
+                        self.learn_clock[j] = false;
+                    }
+                    let e = skew_us.wrapping_sub(self.clock_offset_us[j]) as i32;
+                    // Follow the sender's clock within the rate tolerance.
+                    let slew = self.clock_slew_us.min(e.unsigned_abs());
+                    self.clock_offset_us[j] = if e >= 0 {
+                        self.clock_offset_us[j].wrapping_add(slew)
+                    } else {
+                        self.clock_offset_us[j].wrapping_sub(slew)
+                    };
+                    e
+                }
+            };
+            let too_old = self.received[j] && error_us.unsigned_abs() > cfg.max_message_age_us;
+            if too_old {
+                // The stream restarts: the next valid frame resynchronises it.
+                self.ticks_since_rx[j] = u16::MAX;
+            }
             if !self.received[j] || age > cfg.watchdog_ticks || too_old {
                 faults |= FaultFlags::STATE_STALE;
                 inputs_ok = false;
@@ -410,13 +512,29 @@ impl<const J: usize, M: TorquePredictor<J>, L: TorquePredictor<J>> Compensator<J
 mod tests {
     use super::*;
 
-    /// Model: torque = 2 * own q_ref (or a forced value).
+    /// Model: torque = 2 * own q_ref + `coupling` * the others' q_ref (or a forced
+    /// value); keeps the states it was last given.
     struct TestModel {
         forced: Option<f32>,
+        coupling: f32,
+        seen: [JointState; 3],
+    }
+    impl TestModel {
+        fn new(forced: Option<f32>) -> Self {
+            Self {
+                forced,
+                coupling: 0.0,
+                seen: [JointState::default(); 3],
+            }
+        }
     }
     impl TorquePredictor<3> for TestModel {
         fn predict_nm(&mut self, input: &PredictorInput<3>) -> [f32; 3] {
-            let t = input.joints.map(|s| 2.0 * s.q_ref_rad);
+            self.seen = input.joints;
+            let sum: f32 = input.joints.iter().map(|s| s.q_ref_rad).sum();
+            let t = input
+                .joints
+                .map(|s| 2.0 * s.q_ref_rad + self.coupling * (sum - s.q_ref_rad));
             match self.forced {
                 Some(x) => [x; 3],
                 None => t,
@@ -453,6 +571,7 @@ mod tests {
             },
             watchdog_ticks: 5,
             max_message_age_us: 20_000,
+            bus_clock: BusClock::Synchronised,
             max_torque_nm: 50.0,
             max_torque_rate_nm_s: 10_000.0,
             max_lstm_correction_nm: 5.0,
@@ -468,7 +587,7 @@ mod tests {
     fn new() -> Comp {
         Compensator::new(
             config(),
-            TestModel { forced: None },
+            TestModel::new(None),
             TestLstm {
                 forced: None,
                 resets: 0,
@@ -489,6 +608,7 @@ mod tests {
         for j in [0u8, 2] {
             c.receive(&JointStateMessage {
                 joint: j,
+                session: 0,
                 sequence: k as u16,
                 timestamp_us: k * 1000,
                 state: state(0.5),
@@ -530,6 +650,7 @@ mod tests {
             k += 1;
             c.receive(&JointStateMessage {
                 joint: 0,
+                session: 0,
                 sequence: k as u16,
                 timestamp_us: k * 1000,
                 state: state(0.5),
@@ -567,6 +688,7 @@ mod tests {
             for j in [0u8, 2] {
                 let m = JointStateMessage {
                     joint: j,
+                    session: 0,
                     sequence: (k + 1 + i) as u16,
                     timestamp_us: 0,
                     state: state(0.5),
@@ -586,6 +708,7 @@ mod tests {
         for bad in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY, 1e30] {
             let m = JointStateMessage {
                 joint: 0,
+                session: 0,
                 sequence: (k + 1) as u16,
                 timestamp_us: k * 1000,
                 state: state(bad),
@@ -595,6 +718,7 @@ mod tests {
         // A wrong joint index and this joint's own index are rejected too.
         let m = JointStateMessage {
             joint: 7,
+            session: 0,
             sequence: 1,
             timestamp_us: 0,
             state: state(0.0),
@@ -602,26 +726,30 @@ mod tests {
         assert_eq!(c.receive(&m), FaultFlags::STATE_REJECTED);
         let m = JointStateMessage {
             joint: 1,
+            session: 0,
             sequence: 1,
             timestamp_us: 0,
             state: state(0.0),
         };
         assert_eq!(c.receive(&m), FaultFlags::STATE_REJECTED);
-        // A replayed sequence number.
+        let o = tick(&mut c, k + 1, 3.0);
+        assert!(o.faults.contains(FaultFlags::STATE_REJECTED));
+        assert_eq!((o.source, o.torque_nm), (FeedforwardSource::ModelLstm, 7.0));
+        assert_eq!(c.model_mut().seen[0], state(0.5), "the last good state");
+        // A replayed sequence number: dropped, and a conflict (feedforward zero).
         let m = JointStateMessage {
             joint: 0,
-            sequence: k as u16,
+            session: 0,
+            sequence: (k + 1) as u16,
             timestamp_us: 0,
             state: state(0.0),
         };
         assert_eq!(c.receive(&m), FaultFlags::STATE_OUT_OF_ORDER);
-        let o = tick(&mut c, k + 1, 3.0);
-        assert!(
-            o.faults
-                .contains(FaultFlags::STATE_REJECTED | FaultFlags::STATE_OUT_OF_ORDER)
-        );
-        assert_eq!((o.source, o.torque_nm), (FeedforwardSource::ModelLstm, 7.0));
-        settle(&mut c, k + 1, 7.0, FeedforwardSource::ModelLstm);
+        let o = tick(&mut c, k + 2, 3.0);
+        assert!(o.faults.contains(FaultFlags::STATE_OUT_OF_ORDER));
+        assert_eq!((o.source, o.torque_nm), (FeedforwardSource::Zero, 0.0));
+        settle(&mut c, k + 2, 7.0, FeedforwardSource::ModelLstm);
+        assert_eq!(c.model_mut().seen[0], state(0.5));
     }
 
     #[test]
@@ -638,9 +766,9 @@ mod tests {
     fn invalid_model_falls_back_to_zero_and_recovers() {
         let mut c = new();
         let k = settle(&mut c, 0, 7.0, FeedforwardSource::ModelLstm);
-        for bad in [f32::NAN, f32::INFINITY, -1e9] {
+        for (i, bad) in [f32::NAN, f32::INFINITY, -1e9].into_iter().enumerate() {
             c.model_mut().forced = Some(bad);
-            let o = tick(&mut c, k + 1, 3.0);
+            let o = tick(&mut c, k + 1 + i as u32, 3.0);
             assert!(o.faults.contains(FaultFlags::MODEL_INVALID));
             assert_eq!((o.source, o.torque_nm), (FeedforwardSource::Zero, 0.0));
         }
@@ -704,9 +832,7 @@ mod tests {
         cfg.warmup_ticks = 1;
         let mut c: Comp = Compensator::new(
             cfg,
-            TestModel {
-                forced: Some(100.0),
-            },
+            TestModel::new(Some(100.0)),
             TestLstm {
                 forced: Some(101.0),
                 resets: 0,
@@ -734,7 +860,7 @@ mod tests {
         assert!(matches!(
             Comp::new(
                 cfg,
-                TestModel { forced: None },
+                TestModel::new(None),
                 TestLstm {
                     forced: None,
                     resets: 0
@@ -747,7 +873,7 @@ mod tests {
         assert!(matches!(
             Comp::new(
                 cfg,
-                TestModel { forced: None },
+                TestModel::new(None),
                 TestLstm {
                     forced: None,
                     resets: 0
@@ -760,12 +886,13 @@ mod tests {
     #[test]
     fn model_only_compensator() {
         let mut c: Compensator<3, TestModel, NoPredictor> =
-            Compensator::new(config(), TestModel { forced: None }, NoPredictor).unwrap();
+            Compensator::new(config(), TestModel::new(None), NoPredictor).unwrap();
         let mut o = CompensatorOutput::default();
         for k in 1..30 {
             for j in [0u8, 2] {
                 c.receive(&JointStateMessage {
                     joint: j,
+                    session: 0,
                     sequence: k as u16,
                     timestamp_us: k * 1000,
                     state: state(0.5),
@@ -774,5 +901,241 @@ mod tests {
             o = c.tick(&state(3.0), k * 1000);
         }
         assert_eq!((o.source, o.torque_nm), (FeedforwardSource::Model, 6.0));
+    }
+
+    fn msg(joint: u8, session: u16, sequence: u16, timestamp_us: u32, q: f32) -> JointStateMessage {
+        JointStateMessage {
+            joint,
+            session,
+            sequence,
+            timestamp_us,
+            state: state(q),
+        }
+    }
+
+    /// Ticks `n` times with joints 0 and 2 sending (session 0, sequence `k`) and a
+    /// forged frame before each tick from `forge(k)`; returns the outputs.
+    fn run_with(
+        c: &mut Comp,
+        k0: u32,
+        n: u32,
+        mut forge: impl FnMut(u32) -> Option<JointStateMessage>,
+    ) -> std::vec::Vec<CompensatorOutput> {
+        (k0 + 1..=k0 + n)
+            .map(|k| {
+                if let Some(m) = forge(k) {
+                    c.receive(&m);
+                }
+                tick(c, k, 3.0)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_far_ahead_forged_sequence_is_dropped_and_does_not_silence_the_sender() {
+        let mut c = new();
+        let k = settle(&mut c, 0, 7.0, FeedforwardSource::ModelLstm);
+        let forged = msg(0, 0, (k as u16).wrapping_add(32_767), k * 1000, 5.0);
+        assert_eq!(c.receive(&forged), FaultFlags::STATE_OUT_OF_ORDER);
+        // The real sender's next frame is accepted; the forged state was never used.
+        assert_eq!(
+            c.receive(&msg(0, 0, k as u16 + 1, k * 1000, 0.5)),
+            FaultFlags::NONE
+        );
+        let out = run_with(&mut c, k, 5, |_| None);
+        assert!(out.iter().all(|o| o.source == FeedforwardSource::Zero));
+        assert_eq!(c.model_mut().seen[0].q_ref_rad, 0.5);
+        settle(&mut c, k + 5, 7.0, FeedforwardSource::ModelLstm);
+    }
+
+    #[test]
+    fn an_in_window_forged_frame_silences_the_sender_for_at_most_the_watchdog() {
+        let mut c = new();
+        c.model_mut().coupling = 1.0; // joints 0 and 2 at 0.5: 2 * 3 + 1 (+1 LSTM)
+        let k = settle(&mut c, 0, 8.0, FeedforwardSource::ModelLstm);
+        let w = config().watchdog_ticks as u32;
+        // One forged frame 60 sequence numbers ahead (within the window): accepted.
+        let forged = msg(0, 0, k as u16 + 60, k * 1000, 2.5);
+        assert_eq!(c.receive(&forged), FaultFlags::NONE);
+        let mut accepted_at = None;
+        let mut zero_ticks = 0;
+        for i in 1..=40 {
+            let f = c.receive(&msg(0, 0, (k + i) as u16, (k + i) * 1000, 0.5));
+            if f.is_empty() && accepted_at.is_none() {
+                accepted_at = Some(i);
+            }
+            c.receive(&msg(2, 0, (k + i) as u16, (k + i) * 1000, 0.5));
+            let o = c.tick(&state(3.0), (k + i) * 1000);
+            zero_ticks += u32::from(o.source == FeedforwardSource::Zero);
+            if i > 1 && o.source != FeedforwardSource::Zero {
+                // Once the feedforward is back, it comes from the real state.
+                assert_eq!(c.model_mut().seen[0].q_ref_rad, 0.5, "tick {i}");
+            }
+        }
+        // At most w + 1 of the real sender's frames are dropped.
+        let accepted_at = accepted_at.expect("the real sender is resynchronised");
+        assert!(accepted_at <= w + 2, "accepted at its frame {accepted_at}");
+        assert!(zero_ticks <= 2 * w + 1, "zero for {zero_ticks} ticks");
+        assert!(zero_ticks >= 1, "the conflict is acted upon");
+        assert!(c.latched_faults().contains(FaultFlags::STATE_OUT_OF_ORDER));
+        settle(&mut c, k + 40, 8.0, FeedforwardSource::ModelLstm);
+    }
+
+    #[test]
+    fn a_rebooted_sender_is_resynchronised() {
+        let mut c = new();
+        let mut k = settle(&mut c, 0, 7.0, FeedforwardSource::ModelLstm);
+        // Sender 0 far into its sequence (40 000), then it reboots with a new session
+        // and starts again at 1: accepted at once, the stream restarts.
+        for i in 1..=3u32 {
+            k += 1;
+            c.receive(&msg(0, 7, 40_000 + i as u16, k * 1000, 0.5));
+            c.receive(&msg(2, 0, k as u16, k * 1000, 0.5));
+            c.tick(&state(3.0), k * 1000);
+        }
+        let f = c.receive(&msg(0, 8, 1, k * 1000, 1.5));
+        assert_eq!(
+            f,
+            FaultFlags::STATE_OUT_OF_ORDER,
+            "a session change is reported"
+        );
+        for seq in 2..=40u16 {
+            k += 1;
+            assert_eq!(c.receive(&msg(0, 8, seq, k * 1000, 1.5)), FaultFlags::NONE);
+            c.receive(&msg(2, 0, k as u16, k * 1000, 0.5));
+            c.tick(&state(3.0), k * 1000);
+        }
+        assert_eq!(c.model_mut().seen[0].q_ref_rad, 1.5);
+        // The same, but the sender comes back with its old session: its frames are
+        // dropped while the old stream is live, accepted once it is stale.
+        let w = config().watchdog_ticks as u32;
+        let mut accepted_at = None;
+        for i in 1..=20u32 {
+            k += 1;
+            let f = c.receive(&msg(0, 8, i as u16, k * 1000, 0.5));
+            if f.is_empty() && accepted_at.is_none() {
+                accepted_at = Some(i);
+            }
+            c.receive(&msg(2, 0, k as u16, k * 1000, 0.5));
+            c.tick(&state(3.0), k * 1000);
+        }
+        assert!(accepted_at.is_some_and(|i| i <= w + 1), "{accepted_at:?}");
+        settle(&mut c, k, 7.0, FeedforwardSource::ModelLstm);
+    }
+
+    #[test]
+    fn a_persistent_spoofer_holds_the_feedforward_at_zero() {
+        // The spoofed state would drive this joint's feedforward to its limit.
+        for alternate_sessions in [false, true] {
+            let mut c = new();
+            c.model_mut().coupling = 30.0; // 2 * 3 + 30 * (0.5 + 0.5) + 1
+            let k = settle(&mut c, 0, 37.0, FeedforwardSource::ModelLstm);
+            let out = run_with(&mut c, k, 300, |i| {
+                let (session, seq) = if alternate_sessions {
+                    (99, i as u16)
+                } else {
+                    (0, i as u16 + 1) // one ahead of the real sender
+                };
+                Some(msg(0, session, seq, i * 1000, 1.5)) // 2 * 3 + 30 * 2 + 1 > 50
+            });
+            // Zero from the first conflict on (rate-limited on the way down).
+            let mut last = 37.0;
+            for (i, o) in out.iter().enumerate() {
+                assert!(
+                    o.faults.contains(FaultFlags::STATE_OUT_OF_ORDER),
+                    "{i}: {o:?}"
+                );
+                assert_eq!(o.source, FeedforwardSource::Zero, "{i}: {o:?}");
+                assert!(o.torque_nm <= last && o.torque_nm >= 0.0, "{i}: {o:?}");
+                last = o.torque_nm;
+            }
+            assert_eq!(last, 0.0);
+            assert!(
+                !c.latched_faults()
+                    .contains(FaultFlags::FF_MAGNITUDE_LIMITED)
+            );
+        }
+    }
+
+    #[test]
+    fn free_running_clocks_are_followed_and_delays_are_stale() {
+        let mut cfg = config();
+        cfg.bus_clock = BusClock::FreeRunning {
+            max_rate_error_ppm: 20_000,
+        };
+        cfg.max_message_age_us = 3000;
+        let mut c = Comp::new(
+            cfg,
+            TestModel::new(None),
+            TestLstm {
+                forced: None,
+                resets: 0,
+            },
+        )
+        .unwrap();
+        // Sender clocks: offset by about 1.2e9 us and 1 % fast / slow.
+        let sender = |j: u8, k: u32| {
+            let t = k as f64 * 1000.0 * if j == 0 { 1.01 } else { 0.99 };
+            (1_234_567_890u64 + t as u64) as u32
+        };
+        let mut k = 0;
+        for _ in 0..3000 {
+            k += 1;
+            for j in [0u8, 2] {
+                c.receive(&msg(j, 0, k as u16, sender(j, k), 0.5));
+            }
+            let o = c.tick(&state(3.0), k * 1000);
+            if k > 20 {
+                assert_eq!((o.source, o.torque_nm), (FeedforwardSource::ModelLstm, 7.0));
+            }
+        }
+        // Joint 2's frames now arrive 10 ms late (delayed or replayed): stale.
+        let mut stale = 0;
+        for _ in 0..10 {
+            k += 1;
+            c.receive(&msg(0, 0, k as u16, sender(0, k), 0.5));
+            c.receive(&msg(2, 0, k as u16, sender(2, k - 10), 0.5));
+            let o = c.tick(&state(3.0), k * 1000);
+            stale += u32::from(o.faults.contains(FaultFlags::STATE_STALE));
+        }
+        assert!(stale >= 1, "the delay is seen");
+        // The same clocks with a synchronised-bus configuration are all stale.
+        let mut c = new();
+        for k in 1..50 {
+            for j in [0u8, 2] {
+                c.receive(&msg(j, 0, k as u16, sender(j, k), 0.5));
+            }
+            let o = c.tick(&state(3.0), k * 1000);
+            assert!(o.faults.contains(FaultFlags::STATE_STALE));
+        }
+    }
+
+    #[test]
+    fn the_tick_watchdog_trips_without_the_timestamp_check() {
+        let mut cfg = config();
+        cfg.max_message_age_us = u32::MAX / 2;
+        let mut c = Comp::new(
+            cfg,
+            TestModel::new(None),
+            TestLstm {
+                forced: None,
+                resets: 0,
+            },
+        )
+        .unwrap();
+        let mut k = settle(&mut c, 0, 7.0, FeedforwardSource::ModelLstm);
+        let w = cfg.watchdog_ticks as u32;
+        for i in 1..=w + 3 {
+            k += 1;
+            c.receive(&msg(0, 0, k as u16, k * 1000, 0.5));
+            let o = c.tick(&state(3.0), k * 1000);
+            let stale = i > w;
+            assert_eq!(
+                o.faults.contains(FaultFlags::STATE_STALE),
+                stale,
+                "tick {i}"
+            );
+            assert_eq!(o.source == FeedforwardSource::Zero, stale, "tick {i}");
+        }
     }
 }

@@ -15,7 +15,10 @@ impl FaultFlags {
     /// Watchdog: another modelled joint's state is older than the timeout; the
     /// feedforward falls back to zero.
     pub const STATE_STALE: Self = Self(1 << 1);
-    /// A joint-state message arrived out of order or duplicated (sequence number).
+    /// A joint-state message did not continue its sender's stream (a replayed, older
+    /// or far-ahead sequence number: dropped; a new session: the stream restarts);
+    /// for `watchdog_ticks` ticks after such a conflict the feedforward is zero and
+    /// this flag is set.
     pub const STATE_OUT_OF_ORDER: Self = Self(1 << 2);
     /// This joint's own state was non-finite or out of range; feedforward is zero.
     pub const OWN_STATE_INVALID: Self = Self(1 << 3);

@@ -1,5 +1,56 @@
 //! Joint states exchanged between the joint MCUs (as over EtherCAT) and their wire
 //! format.
+//!
+//! # Threat model of the state bus
+//!
+//! Frames carry no authentication: any device on the bus (a faulty node, a
+//! misconfigured second sender, a malicious one) can forge any frame, including a
+//! valid CRC, any joint index, session, sequence number and timestamp, and the
+//! receiver cannot tell it from the real sender's. What the receiver bounds:
+//!
+//! - **What a forged state can do to the feedforward.** A state is used only when
+//!   every field is finite and within [`StateLimits`]; the prediction made from it
+//!   must be within `max_abs_tau_nm`; the feedforward is then clamped to
+//!   `max_torque_nm` (and `max_current_a`) and changes by at most
+//!   `max_torque_rate_nm_s`. A forger who also silences the real sender (so that no
+//!   sequence conflict is seen) can therefore move the feedforward anywhere within
+//!   +-`max_torque_nm` at the rate limit, and the source still reads `Model` or
+//!   `ModelLstm`: without authentication this case cannot be detected. The
+//!   position and velocity loops stay in charge of the motion.
+//! - **Two senders for one joint are detected.** A frame whose sequence number does
+//!   not continue its stream (a replay, an older number, a jump of more than
+//!   [`SEQUENCE_WINDOW`]) is dropped, and a session change on a live stream
+//!   restarts it; either is a conflict (`STATE_OUT_OF_ORDER`), and for
+//!   `watchdog_ticks` ticks after the last conflict the feedforward is zero. A
+//!   spoofer interleaving its frames with the real sender's therefore holds the
+//!   feedforward at zero (a denial of the feedforward, flagged every tick) instead
+//!   of steering it.
+//! - **How long one forged frame can silence the real sender.** Within a live
+//!   stream only a forward step of 1..=[`SEQUENCE_WINDOW`] is accepted; a stream
+//!   with no accepted frame for more than `watchdog_ticks` ticks is stale and the
+//!   next valid frame resynchronises it, whatever its session and sequence number.
+//!   One forged frame can thus keep the real sender's frames out for at most
+//!   `watchdog_ticks + 1` compensator ticks, and the feedforward is zero for at
+//!   most `2 * watchdog_ticks + 1` ticks before it warms up again (at 1 kHz with
+//!   `watchdog_ticks = 3`: 7 ms).
+//! - **Reboots.** A sender picks a new [`JointStateMessage::session`] at every
+//!   start; a session change resynchronises the stream at once (flagged as a
+//!   conflict, so the feedforward pauses for `watchdog_ticks` ticks). A sender that
+//!   happens to restart with its old session is picked up once the old stream is
+//!   stale.
+//! - **Delays and replays of old frames** are caught by the sender timestamp
+//!   (`max_message_age_us`, against a synchronised bus clock, or against each
+//!   sender's clock offset learned at resynchronisation and followed at no more
+//!   than the clocks' rate tolerance): a stream whose timestamp is off is stale and
+//!   must resynchronise. A delay added slower than the rate tolerance is not seen.
+//! - **Framing.** A field that happens to contain the sync marker cannot lock the
+//!   [`FrameReceiver`] out: after every bad window it rescans the bytes it holds for
+//!   the next marker.
+//!
+//! The fault flags report what was seen: `STATE_REJECTED` (bad field or joint
+//! index), `STATE_OUT_OF_ORDER` (a sequence or session conflict, set on every tick
+//! the feedforward is held at zero because of one), `STATE_STALE` (silence or a
+//! timestamp out of bounds).
 
 /// What one joint tells the others each compensator tick (joint side, SI units).
 ///
@@ -81,6 +132,9 @@ impl StateLimits {
 pub struct JointStateMessage {
     /// Index of the sending joint among the modelled joints (0-based).
     pub joint: u8,
+    /// The sender's session: a value chosen anew at every start (a boot counter or a
+    /// random number), so that a receiver resynchronises after a reboot.
+    pub session: u16,
     /// Sequence number, incremented (wrapping) per message by the sender.
     pub sequence: u16,
     /// Sender's time of the state, microseconds (bus-synchronised clock, wrapping).
@@ -92,10 +146,18 @@ pub struct JointStateMessage {
 /// Start-of-frame marker of the wire format.
 pub const FRAME_SYNC: [u8; 2] = [0xA5, 0x5A];
 
+/// Largest forward step of the sequence number accepted within a live stream
+/// (frames lost in between); a larger jump is a conflict.
+pub const SEQUENCE_WINDOW: u16 = 64;
+
 impl JointStateMessage {
-    /// Length of an encoded frame: sync (2), joint (1), sequence (2), timestamp (4),
-    /// six f32 (24), CRC-16 (2); little-endian.
-    pub const WIRE_LEN: usize = 35;
+    /// Length of an encoded frame: sync (2), joint (1), session (2), sequence (2),
+    /// timestamp (4), six f32 (24), CRC-16 (2); little-endian.
+    pub const WIRE_LEN: usize = 37;
+    /// Offset of the six f32 fields in a frame.
+    const FIELDS_AT: usize = 11;
+    /// Offset of the CRC in a frame.
+    const CRC_AT: usize = Self::WIRE_LEN - 2;
 
     /// Encode into a frame (CRC-16/CCITT-FALSE over everything after the sync).
     pub fn encode(&self) -> [u8; Self::WIRE_LEN] {
@@ -103,16 +165,17 @@ impl JointStateMessage {
         b[0] = FRAME_SYNC[0];
         b[1] = FRAME_SYNC[1];
         b[2] = self.joint;
-        b[3..5].copy_from_slice(&self.sequence.to_le_bytes());
-        b[5..9].copy_from_slice(&self.timestamp_us.to_le_bytes());
+        b[3..5].copy_from_slice(&self.session.to_le_bytes());
+        b[5..7].copy_from_slice(&self.sequence.to_le_bytes());
+        b[7..11].copy_from_slice(&self.timestamp_us.to_le_bytes());
         let fields = self.state.to_array();
-        let mut k = 9;
+        let mut k = Self::FIELDS_AT;
         for f in fields {
             b[k..k + 4].copy_from_slice(&f.to_le_bytes());
             k += 4;
         }
-        let crc = crc16(&b[2..33]);
-        b[33..35].copy_from_slice(&crc.to_le_bytes());
+        let crc = crc16(&b[2..Self::CRC_AT]);
+        b[Self::CRC_AT..].copy_from_slice(&crc.to_le_bytes());
         b
     }
 
@@ -122,18 +185,20 @@ impl JointStateMessage {
         if b[0] != FRAME_SYNC[0] || b[1] != FRAME_SYNC[1] {
             return None;
         }
-        if crc16(&b[2..33]) != u16::from_le_bytes([b[33], b[34]]) {
+        let crc = u16::from_le_bytes([b[Self::CRC_AT], b[Self::CRC_AT + 1]]);
+        if crc16(&b[2..Self::CRC_AT]) != crc {
             return None;
         }
         let mut fields = [0.0f32; 6];
         for (i, f) in fields.iter_mut().enumerate() {
-            let k = 9 + 4 * i;
+            let k = Self::FIELDS_AT + 4 * i;
             *f = f32::from_le_bytes([b[k], b[k + 1], b[k + 2], b[k + 3]]);
         }
         Some(Self {
             joint: b[2],
-            sequence: u16::from_le_bytes([b[3], b[4]]),
-            timestamp_us: u32::from_le_bytes([b[5], b[6], b[7], b[8]]),
+            session: u16::from_le_bytes([b[3], b[4]]),
+            sequence: u16::from_le_bytes([b[5], b[6]]),
+            timestamp_us: u32::from_le_bytes([b[7], b[8], b[9], b[10]]),
             state: JointState::from_array(fields),
         })
     }
@@ -155,7 +220,8 @@ pub fn crc16(bytes: &[u8]) -> u16 {
     crc
 }
 
-/// Reassembles frames from a byte stream (UART) in fixed time per byte.
+/// Reassembles frames from a byte stream (UART) in bounded time per byte (at most
+/// one frame's CRC and one scan and shift of the buffer).
 #[derive(Clone, Debug)]
 pub struct FrameReceiver {
     buf: [u8; JointStateMessage::WIRE_LEN],
@@ -177,8 +243,10 @@ impl FrameReceiver {
         }
     }
 
-    /// Feed one byte; returns a message when it completes a valid frame. A bad frame
-    /// is dropped and the receiver re-synchronises on the next sync marker.
+    /// Feed one byte; returns a message when it completes a valid frame. After a bad
+    /// window (a false sync marker inside a field, a truncated or corrupt frame) the
+    /// receiver rescans the bytes it holds after the window's start for the next
+    /// sync marker, so a real frame starting inside the bad window is not lost.
     pub fn push(&mut self, byte: u8) -> Option<JointStateMessage> {
         match self.len {
             0 if byte != FRAME_SYNC[0] => return None,
@@ -195,8 +263,31 @@ impl FrameReceiver {
         if self.len < JointStateMessage::WIRE_LEN {
             return None;
         }
-        self.len = 0;
-        JointStateMessage::decode(&self.buf)
+        let msg = JointStateMessage::decode(&self.buf);
+        if msg.is_some() {
+            self.len = 0;
+        } else {
+            self.rescan();
+        }
+        msg
+    }
+
+    /// Drop the window's first byte and everything before the next sync marker (or
+    /// a lone first sync byte at the end) in the held bytes: one pass over the
+    /// buffer. The rest is kept as a partial frame (shorter than a frame, so it
+    /// needs more bytes before it is checked).
+    fn rescan(&mut self) {
+        const N: usize = JointStateMessage::WIRE_LEN;
+        let marker = self.buf.windows(2).skip(1).position(|w| *w == FRAME_SYNC);
+        let start = match marker {
+            Some(p) => p + 1,
+            None if self.buf[N - 1] == FRAME_SYNC[0] => N - 1,
+            None => N,
+        };
+        for k in 0..N {
+            self.buf[k] = self.buf.get(k + start).copied().unwrap_or(0);
+        }
+        self.len = N.saturating_sub(start);
     }
 }
 
@@ -208,6 +299,7 @@ mod tests {
     fn frames_round_trip_and_resync() {
         let m = JointStateMessage {
             joint: 2,
+            session: 0xBEEF,
             sequence: 65535,
             timestamp_us: 123_456_789,
             state: JointState::from_array([1.0, -2.0, 3.5, f32::NAN, 1e30, -0.25]),
@@ -219,8 +311,8 @@ mod tests {
             m.state.to_array().map(f32::to_bits)
         );
         assert_eq!(
-            (d.joint, d.sequence, d.timestamp_us),
-            (2, 65535, 123_456_789)
+            (d.joint, d.session, d.sequence, d.timestamp_us),
+            (2, 0xBEEF, 65535, 123_456_789)
         );
         let mut bad = frame;
         bad[12] ^= 1;
@@ -240,5 +332,94 @@ mod tests {
             }
         }
         assert_eq!(got, 2);
+    }
+
+    #[test]
+    fn accepts_checks_every_field_against_its_bound() {
+        let limits = StateLimits {
+            max_abs_q_rad: 1.0,
+            max_abs_qd_rad_s: 2.0,
+            max_abs_qdd_rad_s2: 3.0,
+            max_abs_tau_nm: 4.0,
+        };
+        let bounds = [1.0, 2.0, 3.0, 1.0, 2.0, 4.0];
+        assert!(limits.accepts(&JointState::from_array(bounds)));
+        assert!(limits.accepts(&JointState::from_array(bounds.map(|b: f32| -b))));
+        for field in 0..6 {
+            for bad in [
+                bounds[field].next_up(),
+                -bounds[field].next_up(),
+                f32::NAN,
+                f32::INFINITY,
+                f32::NEG_INFINITY,
+            ] {
+                let mut a = [0.0; 6];
+                a[field] = bad;
+                assert!(
+                    !limits.accepts(&JointState::from_array(a)),
+                    "field {field} = {bad}"
+                );
+            }
+        }
+    }
+
+    /// Frames whose reference position's bytes hold the sync marker.
+    fn frames_with_a_false_marker(n: u16) -> std::vec::Vec<u8> {
+        let q = f32::from_le_bytes([0x00, 0xA5, 0x5A, 0x3F]); // 0.85...
+        (0..n)
+            .flat_map(|i| {
+                JointStateMessage {
+                    joint: 1,
+                    session: 3,
+                    sequence: i,
+                    timestamp_us: 1000 * u32::from(i),
+                    state: JointState::from_array([q, 0.0, 0.0, 0.0, 0.0, 0.0]),
+                }
+                .encode()
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_false_sync_marker_in_a_field_does_not_lock_the_receiver() {
+        let bytes = frames_with_a_false_marker(20);
+        // Joining the stream at any byte of the first frame: every later frame is
+        // decoded.
+        for start in 0..JointStateMessage::WIRE_LEN {
+            let mut rx = FrameReceiver::new();
+            let got: std::vec::Vec<u16> = bytes[start..]
+                .iter()
+                .filter_map(|&b| rx.push(b))
+                .map(|m| m.sequence)
+                .collect();
+            let first = u16::from(start > 0);
+            assert_eq!(
+                got,
+                (first..20).collect::<std::vec::Vec<_>>(),
+                "start {start}"
+            );
+        }
+    }
+
+    #[test]
+    fn the_receiver_rescans_after_a_bad_window() {
+        let good = frames_with_a_false_marker(3);
+        let n = JointStateMessage::WIRE_LEN;
+        // A frame cut short (the sender reset mid-frame), a corrupted frame, then
+        // good frames: each good frame starts inside the bad window before it.
+        for cut in [2, 10, n - 3] {
+            let mut bytes = good[..cut].to_vec();
+            let mut corrupt = good[n..2 * n].to_vec();
+            corrupt[20] ^= 0x40;
+            bytes.extend_from_slice(&corrupt[..n - 1]);
+            bytes.extend_from_slice(&good);
+            let mut rx = FrameReceiver::new();
+            let got: std::vec::Vec<u16> = bytes
+                .iter()
+                .filter_map(|&b| rx.push(b))
+                .map(|m| m.sequence)
+                .collect();
+            assert_eq!(got, [0, 1, 2], "cut at {cut}");
+        }
     }
 }

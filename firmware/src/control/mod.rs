@@ -25,13 +25,13 @@ pub mod predictors;
 
 pub use cascade::{CascadeConfig, JointReference, Pid, PositionVelocityCascade};
 pub use compensator::{
-    Compensator, CompensatorConfig, CompensatorOutput, ConfigError, FeedforwardSource, NoPredictor,
-    PredictorInput, TorquePredictor,
+    BusClock, Compensator, CompensatorConfig, CompensatorOutput, ConfigError, FeedforwardSource,
+    NoPredictor, PredictorInput, TorquePredictor,
 };
 pub use drive::{DriveConfig, DriveOutput, JointDrive, SensorSample};
 pub use faults::FaultFlags;
 pub use foc::{CurrentLoop, CurrentLoopConfig, MotorParameters};
-pub use message::{FrameReceiver, JointState, JointStateMessage, StateLimits};
+pub use message::{FrameReceiver, JointState, JointStateMessage, SEQUENCE_WINDOW, StateLimits};
 pub use predictors::{DecoupledJointModel, LstmPredictor, SubsetModel, TorqueNetwork};
 
 /// `x` limited to [-limit, limit] without a panic path (`f32::clamp` asserts its

@@ -14,9 +14,9 @@ pub mod plant;
 pub mod wrist;
 
 use firmware::control::{
-    CascadeConfig, Compensator, CompensatorConfig, CurrentLoopConfig, DriveConfig, FaultFlags,
-    JointDrive, JointReference, JointState, JointStateMessage, NoPredictor, PredictorInput,
-    SensorSample, StateLimits, TorquePredictor,
+    BusClock, CascadeConfig, Compensator, CompensatorConfig, CurrentLoopConfig, DriveConfig,
+    FaultFlags, JointDrive, JointReference, JointState, JointStateMessage, NoPredictor,
+    PredictorInput, SensorSample, StateLimits, TorquePredictor,
 };
 use plant::{JointPlant, JointPlantConfig, SingleJointLoad};
 use std::f64::consts::TAU;
@@ -163,6 +163,7 @@ impl SingleJointSetup {
             },
             watchdog_ticks: 3,
             max_message_age_us: 50_000,
+            bus_clock: BusClock::Synchronised,
             max_torque_nm: 120.0,
             max_torque_rate_nm_s: 2_000.0,
             max_lstm_correction_nm: 30.0,
@@ -320,6 +321,7 @@ impl StateBus {
     pub fn send(&mut self, joint: usize, timestamp_us: u32, state: JointState) {
         let msg = JointStateMessage {
             joint: joint as u8,
+            session: 0,
             sequence: self.sequence,
             timestamp_us,
             state,

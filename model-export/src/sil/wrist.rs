@@ -23,9 +23,9 @@ use crate::nn::model::LstmModel;
 use crate::sim::{self, CommandedTrajectory, DriveState, PlantEffects, PlantParameters};
 use anyhow::{Context, bail, ensure};
 use firmware::control::{
-    CascadeConfig, Compensator, CompensatorConfig, CurrentLoopConfig, DriveConfig, DriveOutput,
-    FaultFlags, FeedforwardSource, JointDrive, JointReference, JointState, LstmPredictor,
-    NoPredictor, SensorSample, StateLimits, TorqueNetwork, TorquePredictor,
+    BusClock, CascadeConfig, Compensator, CompensatorConfig, CurrentLoopConfig, DriveConfig,
+    DriveOutput, FaultFlags, FeedforwardSource, JointDrive, JointReference, JointState,
+    LstmPredictor, NoPredictor, SensorSample, StateLimits, TorqueNetwork, TorquePredictor,
 };
 use firmware::dynamics::RigidBodyModel;
 use firmware::model::FeaturePreset;
@@ -306,6 +306,7 @@ impl WristSetup {
             },
             watchdog_ticks: 3,
             max_message_age_us: (3.5e6 / compensator_hz) as u32,
+            bus_clock: BusClock::Synchronised,
             max_torque_nm: 50.0,
             max_torque_rate_nm_s: 2_000.0,
             max_lstm_correction_nm: 10.0,
