@@ -202,6 +202,11 @@ pub struct EvaluateArgs {
     /// before and after compensation) of the first log.
     #[arg(long)]
     pub figures: Option<PathBuf>,
+    /// Training datasets (CSV, comma separated) for the friction-feature least-squares
+    /// baseline (`nn::baseline`): adds its RMS [N·m] per output (`baseline` column,
+    /// `baseline_rms_nm`).
+    #[arg(long, value_delimiter = ',')]
+    pub baseline_data: Vec<PathBuf>,
 }
 
 /// `import` options.
@@ -315,20 +320,61 @@ fn evaluate_cmd(a: EvaluateArgs) -> Result<()> {
     let model = io::read_model(&a.model)?;
     spec.check_model(&model)
         .with_context(|| format!("{}", a.model.display()))?;
+    // The linear baseline, fitted on --baseline-data (before any output).
+    let baseline = if a.baseline_data.is_empty() {
+        None
+    } else {
+        let tables: Vec<Table> = a
+            .baseline_data
+            .iter()
+            .map(|p| Table::read(p))
+            .collect::<Result<_>>()?;
+        Some(crate::nn::baseline::fit(
+            &tables,
+            &eval::target_joints(&spec),
+        )?)
+    };
+    let tables: Vec<Table> = a
+        .data
+        .iter()
+        .map(|p| Table::read(p))
+        .collect::<Result<_>>()?;
+    let seqs: Vec<Sequence> = tables
+        .iter()
+        .map(|t| spec.sequence(t))
+        .collect::<Result<_>>()?;
     let mut reports = Vec::new();
-    for (i, (p, s)) in a.data.iter().zip(load(&a.data, &spec)?).enumerate() {
+    for (i, ((p, s), table)) in a.data.iter().zip(seqs).zip(&tables).enumerate() {
         let rows = eval::evaluate(&model, &s)?;
+        let base_rms = match &baseline {
+            Some(b) => eval::baseline_rms(&spec, table, s.len(), b)?,
+            None => vec![None; rows.len()],
+        };
         if let (0, Some(dir)) = (i, &a.figures) {
             plot::compensation_figures(&model, &s, dir)?;
         }
+        let rows: Vec<eval::ReportRow> = rows
+            .into_iter()
+            .zip(base_rms)
+            .map(|(eval, baseline_rms_nm)| eval::ReportRow {
+                eval,
+                samples: s.len(),
+                baseline_rms_nm,
+            })
+            .collect();
+        let plain: Vec<eval::TargetEval> = rows.iter().map(|r| r.eval.clone()).collect();
         println!(
             "{} ({} steps, streamed):\n{}",
             p.display(),
             s.len(),
-            eval::markdown(&rows)
+            if baseline.is_some() {
+                eval::markdown_with_baseline(&rows)
+            } else {
+                eval::markdown(&plain)
+            }
         );
         let paper = (spec.preset == "paper")
-            .then(|| eval::beside_paper_markdown(&a.features.joints, &rows))
+            .then(|| eval::beside_paper_markdown(&a.features.joints, &plain))
             .flatten();
         if let Some(t) = &paper {
             println!("Beside the paper's Table 2 (Zhang et al. 2020, N m):\n{t}");
@@ -351,7 +397,10 @@ fn evaluate_cmd(a: EvaluateArgs) -> Result<()> {
         crate::nn::write_atomic(
             &r,
             serde_json::to_string_pretty(
-                &serde_json::json!({"preset": spec.preset, "data": reports}),
+                &serde_json::json!({"preset": spec.preset, "data": reports,
+                    "baseline": baseline.as_ref().map(|b| serde_json::json!({
+                        "data": a.baseline_data.iter().map(|p| p.display().to_string()).collect::<Vec<_>>(),
+                        "fit": b}))}),
             )?
             .as_bytes(),
         )?;

@@ -1,5 +1,6 @@
 //! The LSTM compensation network on the host: datasets, candle training with a fused
 //! LSTM op, PyTorch safetensors interchange, and evaluation through the firmware step.
+pub mod baseline;
 pub mod data;
 pub mod eval;
 pub mod fused;

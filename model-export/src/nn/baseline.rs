@@ -1,0 +1,329 @@
+//! The friction-feature least-squares baseline: per joint, ordinary least squares (f64)
+//! of the measured torque `tau_meas_jN` [N·m] on the identified model's torque and a
+//! fixed set of friction, inertia and pose features ([`FEATURE_NAMES`]). It is the linear
+//! yardstick a learned compensator has to beat.
+//!
+//! Columns read per joint N: `tau_meas_jN` (fit only), `tau_model_jN` [N·m], `q_jN`
+//! [rad], `qd_jN` [rad/s]; `qdd_jN` [rad/s²] when present, else central differences of
+//! `qd_jN` over `time_s` [s]; `rest_dir_jN` (-1/0/+1) when present, else computed here
+//! (the direction of the last motion with |qd| > [`REST_BAND_RAD_S`], held while at rest,
+//! 0 while moving).
+use super::data::Table;
+use anyhow::{Context, Result, bail};
+use nalgebra::{DMatrix, DVector};
+
+/// Number of features per joint.
+pub const N_FEATURES: usize = 16;
+
+/// Velocity scales [rad/s] of the `tanh(qd / v0)` Coulomb/Stribeck features.
+pub const TANH_SCALES_RAD_S: [f64; 4] = [0.01, 0.05, 0.2, 1.0];
+
+/// Velocity scale [rad/s] of the load-dependent friction feature `|tau_model|·tanh(qd/v)`.
+pub const LOAD_FRICTION_SCALE_RAD_S: f64 = 0.05;
+
+/// Speed [rad/s] at or below which a joint counts as at rest (computed `rest_dir`).
+pub const REST_BAND_RAD_S: f32 = 0.005;
+
+/// Feature names, in coefficient order (units of each coefficient: N·m per feature unit).
+pub const FEATURE_NAMES: [&str; N_FEATURES] = [
+    "1",
+    "tau_model",
+    "tanh(qd/0.01)",
+    "tanh(qd/0.05)",
+    "tanh(qd/0.2)",
+    "tanh(qd/1)",
+    "qd",
+    "qd*|qd|",
+    "sqrt(|qd|)*sign(qd)",
+    "qdd",
+    "sin(q)",
+    "cos(q)",
+    "sin(2q)",
+    "cos(2q)",
+    "rest_dir",
+    "|tau_model|*tanh(qd/0.05)",
+];
+
+/// Singular values below this fraction of the largest (column-scaled design) count as 0.
+const RCOND: f64 = 1e-10;
+
+/// A fitted baseline: per joint, coefficients of [`FEATURE_NAMES`] (N·m per feature unit).
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct LinearBaseline {
+    /// Robot joint numbers (1-based, as in `tau_meas_jN`), in coefficient order.
+    pub joints: Vec<usize>,
+    /// Feature names ([`FEATURE_NAMES`]).
+    pub feature_names: Vec<String>,
+    /// Per joint, one coefficient per feature.
+    pub coefficients: Vec<Vec<f64>>,
+    /// Per joint, RMS fit residual on the training rows [N·m].
+    pub train_rms_nm: Vec<f64>,
+    /// Training rows (all tables together).
+    pub samples: usize,
+}
+
+/// The direction of the last motion while at rest, from velocities [rad/s] (-1/0/+1).
+pub fn rest_direction(qd_rad_s: &[f32]) -> Vec<f64> {
+    let mut last = 0.0;
+    qd_rad_s
+        .iter()
+        .map(|&v| {
+            if v > REST_BAND_RAD_S {
+                last = 1.0;
+                0.0
+            } else if v < -REST_BAND_RAD_S {
+                last = -1.0;
+                0.0
+            } else {
+                last
+            }
+        })
+        .collect()
+}
+
+/// Central differences of `qd` [rad/s] over `time_s` [s] (one-sided at the ends) [rad/s²].
+pub fn central_differences(table: &Table, qd_rad_s: &[f32], qd_name: &str) -> Result<Vec<f64>> {
+    let n = qd_rad_s.len();
+    if n < 2 {
+        return Ok(vec![0.0; n]);
+    }
+    let t = table.column("time_s")?;
+    (0..n)
+        .map(|k| {
+            let (a, b) = (k.saturating_sub(1), (k + 1).min(n - 1));
+            let dt = t[b] as f64 - t[a] as f64;
+            if dt.is_finite() && dt > 0.0 {
+                Ok((qd_rad_s[b] as f64 - qd_rad_s[a] as f64) / dt)
+            } else {
+                bail!(
+                    "{}: column `time_s` does not increase at row {} (needed for the acceleration \
+                     of `{qd_name}`; or give a `qdd` column)",
+                    table.path.display(),
+                    k + 1
+                )
+            }
+        })
+        .collect()
+}
+
+/// The feature rows of joint `joint` (1-based) of `table`, [`FEATURE_NAMES`] order.
+pub fn features(table: &Table, joint: usize) -> Result<Vec<[f64; N_FEATURES]>> {
+    let name = |kind: &str| format!("{kind}_j{joint}");
+    let has = |c: &str| table.names.iter().any(|n| n == c);
+    let q = table.column(&name("q"))?;
+    let qd = table.column(&name("qd"))?;
+    let tau_model = table.column(&name("tau_model"))?;
+    let qdd: Vec<f64> = if has(&name("qdd")) {
+        table
+            .column(&name("qdd"))?
+            .iter()
+            .map(|&v| v as f64)
+            .collect()
+    } else {
+        central_differences(table, qd, &name("qd"))?
+    };
+    let rest: Vec<f64> = if has(&name("rest_dir")) {
+        table
+            .column(&name("rest_dir"))?
+            .iter()
+            .map(|&v| v as f64)
+            .collect()
+    } else {
+        rest_direction(qd)
+    };
+    let rows: Vec<[f64; N_FEATURES]> = (0..table.len())
+        .map(|k| {
+            let (q, v, m) = (q[k] as f64, qd[k] as f64, tau_model[k] as f64);
+            let th = TANH_SCALES_RAD_S.map(|s| (v / s).tanh());
+            [
+                1.0,
+                m,
+                th[0],
+                th[1],
+                th[2],
+                th[3],
+                v,
+                v * v.abs(),
+                v.abs().sqrt() * v.signum(),
+                qdd[k],
+                q.sin(),
+                q.cos(),
+                (2.0 * q).sin(),
+                (2.0 * q).cos(),
+                rest[k],
+                m.abs() * (v / LOAD_FRICTION_SCALE_RAD_S).tanh(),
+            ]
+        })
+        .collect();
+    for (k, r) in rows.iter().enumerate() {
+        if let Some(f) = r.iter().position(|x| !x.is_finite()) {
+            bail!(
+                "{}: row {}: joint {joint}: feature `{}` is not finite",
+                table.path.display(),
+                k + 1,
+                FEATURE_NAMES[f]
+            );
+        }
+    }
+    Ok(rows)
+}
+
+/// Fits the baseline per joint (1-based) on all rows of `tables` (column-scaled SVD).
+pub fn fit(tables: &[Table], joints: &[usize]) -> Result<LinearBaseline> {
+    if joints.is_empty() {
+        bail!("the linear baseline needs at least one joint");
+    }
+    let mut coefficients = Vec::new();
+    let mut train_rms_nm = Vec::new();
+    let mut samples = 0;
+    for &j in joints {
+        let mut x: Vec<[f64; N_FEATURES]> = Vec::new();
+        let mut y: Vec<f64> = Vec::new();
+        for t in tables {
+            let f = features(t, j)?;
+            let meas = t.column(&format!("tau_meas_j{j}"))?;
+            x.extend(f);
+            y.extend(meas.iter().map(|&v| v as f64));
+        }
+        let n = x.len();
+        if n < N_FEATURES {
+            bail!(
+                "the linear baseline has {N_FEATURES} features per joint but only {n} training \
+                 samples ({})",
+                tables
+                    .iter()
+                    .map(|t| t.path.display().to_string())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            );
+        }
+        let w = solve(&x, &y).with_context(|| format!("linear baseline, joint {j}"))?;
+        let ss: f64 = x
+            .iter()
+            .zip(&y)
+            .map(|(r, y)| (y - dot(&w, r)).powi(2))
+            .sum();
+        train_rms_nm.push((ss / n as f64).sqrt());
+        coefficients.push(w);
+        samples = n;
+    }
+    Ok(LinearBaseline {
+        joints: joints.to_vec(),
+        feature_names: FEATURE_NAMES.iter().map(|s| s.to_string()).collect(),
+        coefficients,
+        train_rms_nm,
+        samples,
+    })
+}
+
+/// Least squares `x w ≈ y` through the SVD of the column-scaled design (minimum-norm
+/// solution when columns are dependent, e.g. a constant column beside the intercept).
+fn solve(x: &[[f64; N_FEATURES]], y: &[f64]) -> Result<Vec<f64>> {
+    let n = x.len();
+    let scale: Vec<f64> = (0..N_FEATURES)
+        .map(|c| {
+            let rms = (x.iter().map(|r| r[c] * r[c]).sum::<f64>() / n as f64).sqrt();
+            if rms.is_finite() && rms > 0.0 {
+                rms
+            } else {
+                1.0
+            }
+        })
+        .collect();
+    let a = DMatrix::from_fn(n, N_FEATURES, |r, c| x[r][c] / scale[c]);
+    let b = DVector::from_column_slice(y);
+    let svd = a.svd(true, true);
+    let smax = svd.singular_values.max();
+    let z = svd
+        .solve(&b, smax * RCOND)
+        .map_err(|e| anyhow::anyhow!("least squares: {e}"))?;
+    let w: Vec<f64> = z.iter().zip(&scale).map(|(z, s)| z / s).collect();
+    if w.iter().any(|v| !v.is_finite()) {
+        bail!("least squares gave non-finite coefficients");
+    }
+    Ok(w)
+}
+
+fn dot(w: &[f64], r: &[f64; N_FEATURES]) -> f64 {
+    w.iter().zip(r).map(|(a, b)| a * b).sum()
+}
+
+impl LinearBaseline {
+    /// Predicted measured torque [N·m] per joint (in [`Self::joints`] order), per row.
+    pub fn predict(&self, table: &Table) -> Result<Vec<Vec<f64>>> {
+        self.joints
+            .iter()
+            .zip(&self.coefficients)
+            .map(|(&j, w)| Ok(features(table, j)?.iter().map(|r| dot(w, r)).collect()))
+            .collect()
+    }
+
+    /// The coefficients of joint `joint` (1-based), if fitted.
+    pub fn joint_coefficients(&self, joint: usize) -> Option<&[f64]> {
+        let k = self.joints.iter().position(|&j| j == joint)?;
+        Some(&self.coefficients[k])
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::path::PathBuf;
+
+    fn table(names: &[&str], columns: Vec<Vec<f32>>) -> Table {
+        Table {
+            path: PathBuf::from("mem.csv"),
+            names: names.iter().map(|s| s.to_string()).collect(),
+            columns,
+        }
+    }
+
+    #[test]
+    fn rest_direction_holds_the_last_motion_at_rest_only() {
+        let qd = [0.0, 0.3, 0.001, 0.0, -0.2, -0.004, 0.0, 0.01];
+        assert_eq!(
+            rest_direction(&qd),
+            [0.0, 0.0, 1.0, 1.0, 0.0, -1.0, -1.0, 0.0]
+        );
+    }
+
+    #[test]
+    fn central_differences_use_the_time_column() {
+        let t = table(
+            &["time_s", "qd_j1"],
+            vec![vec![0.0, 0.1, 0.3, 0.4], vec![0.0, 1.0, 3.0, 4.0]],
+        );
+        let qdd = central_differences(&t, t.column("qd_j1").unwrap(), "qd_j1").unwrap();
+        for v in qdd {
+            assert!((v - 10.0).abs() < 1e-4, "{v}");
+        }
+        let bad = table(&["time_s", "qd_j1"], vec![vec![0.0, 0.0], vec![0.0, 1.0]]);
+        let e = central_differences(&bad, bad.column("qd_j1").unwrap(), "qd_j1").unwrap_err();
+        assert!(e.to_string().contains("mem.csv") && e.to_string().contains("time_s"));
+    }
+
+    #[test]
+    fn a_constant_column_beside_the_intercept_is_harmless() {
+        // rest_dir is constant 1 (collinear with the intercept); tau = 2 + 3 qd.
+        let n = 200;
+        let qd: Vec<f32> = (0..n).map(|k| (k as f32 * 0.37).sin()).collect();
+        let q: Vec<f32> = (0..n).map(|k| k as f32 * 0.01).collect();
+        let tau: Vec<f32> = qd.iter().map(|v| 2.0 + 3.0 * v).collect();
+        let t = table(
+            &[
+                "q_j1",
+                "qd_j1",
+                "qdd_j1",
+                "tau_model_j1",
+                "rest_dir_j1",
+                "tau_meas_j1",
+            ],
+            vec![q, qd, vec![0.0; n], vec![0.0; n], vec![1.0; n], tau.clone()],
+        );
+        let b = fit(std::slice::from_ref(&t), &[1]).unwrap();
+        let p = b.predict(&t).unwrap();
+        for (a, y) in p[0].iter().zip(&tau) {
+            assert!((a - *y as f64).abs() < 1e-5, "{a} vs {y}");
+        }
+    }
+}

@@ -1,0 +1,203 @@
+#!/usr/bin/env bash
+# The real-data compensation study in one command, on a folder with the UR10e layout
+# (`ur10e.urdf`, `identification/*.csv`, `validation/*.csv`: static poses):
+# - identify twice on the training runs: the paper model (viscous + Coulomb smoothed at
+#   0.02 rad/s) -> paper-model.json, and the first stage (`--friction-model extended`)
+#   -> model.json;
+# - one compensation dataset per run and model (data-paper/, data/): training and
+#   validation runs whole (`--trim-rest-rad-s 0`), test runs and static poses with the
+#   rest trimmed at 0.01 rad/s (a static pose is kept whole); measured torque unfiltered;
+# - train the networks (NETS, below) on the training runs, validated on the validation run;
+# - evaluate every network on every test run and static pose, with the friction-feature
+#   least-squares baseline fitted on the same training datasets (`--baseline-data`);
+# - OUT_DIR/summary.json (per run and joint) and a Markdown table of it.
+# Runs are named by file name without `.csv`. Training runs: every identification run
+# whose name contains no `load`/`Load` (this drops `unload` too) and whose values are in
+# range (the screen below), except the test and validation runs. Test runs: TEST_RUNS (default `20_02_19_15harm50sec
+# 20_02_10-30sec_12harm` when both are present, matched with or without the `ur-`
+# prefix), else the last two training candidates in sorted order; validation run:
+# VALIDATION_RUN (default `20_02_05-20sec_12harm` when present), else the third-last.
+# Usage: bash scripts/ur10e_compensation.sh DATASET_DIR OUT_DIR
+# Environment (optional): TEST_RUNS, VALIDATION_RUN, JOINTS (1,2,3,4,5,6), EPOCHS (60),
+# NETS (names from the table below, space separated; default all),
+# FIRST_STAGE_ARGS (default `--friction-model extended`), CARGO_TARGET_DIR.
+set -euo pipefail
+root="$(cd "$(dirname "$0")/.." && pwd)"
+usage="usage: ur10e_compensation.sh DATASET_DIR OUT_DIR"
+D="$(cd "${1:?$usage}" && pwd)"
+out="${2:?$usage}"
+I="$D/identification"
+V="$D/validation"
+[ -f "$D/ur10e.urdf" ] && [ -d "$I" ] || { echo "$D: no ur10e.urdf or identification/" >&2; exit 2; }
+joints="${JOINTS:-1,2,3,4,5,6}"
+epochs="${EPOCHS:-60}"
+read -r -a first_stage_args <<< "${FIRST_STAGE_ARGS:---friction-model extended}"
+# name preset dataset-folder: the paper's presets over the paper model (as
+# scripts/ur10e_lstm.sh), the drive-side compensator and both presets over the first stage.
+all_nets=("drive drive data" "feedforward feedforward data-paper" "paper paper data-paper"
+  "feedforward_first_stage feedforward data" "paper_first_stage paper data")
+read -r -a want_nets <<< "${NETS:-drive feedforward paper feedforward_first_stage paper_first_stage}"
+
+target="${CARGO_TARGET_DIR:-$root/target}"
+case "$target" in /*) ;; *) target="$PWD/$target" ;; esac
+cargo build --profile host -p model-export --manifest-path "$root/Cargo.toml" --quiet
+ME="$target/host/model-export"
+
+# Runs in sorted order; the name of a run (with or without the `ur-` prefix) if present.
+mapfile -t runs < <(cd "$I" && ls -- *.csv | sed 's/\.csv$//' | LC_ALL=C sort)
+mapfile -t poses < <(if [ -d "$V" ]; then cd "$V" && ls -- *.csv 2> /dev/null | sed 's/\.csv$//' | LC_ALL=C sort; fi)
+find_run() { local r; for r in "$1" "ur-$1"; do [ -f "$I/$r.csv" ] && { echo "$r"; return 0; }; done; return 1; }
+# Runs with values no UR10e logs (|q| > 7 rad, |qd| > 4 rad/s, |current| > 100 A, not a
+# number: the UR10e folder has corrupt files) are left out, with a note.
+mapfile -t corrupt < <(python3 - "$I" "${runs[@]}" << 'EOF'
+import csv, math, sys
+for run in sys.argv[2:]:
+    with open(f"{sys.argv[1]}/{run}.csv") as f:
+        for r in csv.reader(f):
+            v = [float(x) for x in r[1:19]]
+            if not (all(math.isfinite(x) for x in v) and max(map(abs, v[:6])) <= 7
+                    and max(map(abs, v[6:12])) <= 4 and max(map(abs, v[12:])) <= 100):
+                print(run)
+                break
+EOF
+)
+[ "${#corrupt[@]}" -eq 0 ] || echo "left out (values out of range): ${corrupt[*]}"
+mapfile -t candidates < <(printf '%s\n' "${runs[@]}" | grep -v '[lL]oad' \
+  | grep -vxF -f <(printf '%s\n' "${corrupt[@]}" "/") || true)
+[ "${#candidates[@]}" -ge 4 ] || { echo "$I: fewer than 4 runs without load" >&2; exit 2; }
+tests=()
+for r in ${TEST_RUNS:-20_02_19_15harm50sec 20_02_10-30sec_12harm}; do
+  if f=$(find_run "$r"); then tests+=("$f"); elif [ -n "${TEST_RUNS:-}" ]; then
+    echo "$I: no test run $r" >&2; exit 2; fi
+done
+n=${#candidates[@]}
+[ -n "${TEST_RUNS:-}" ] || [ "${#tests[@]}" -eq 2 ] || tests=("${candidates[n - 2]}" "${candidates[n - 1]}")
+if ! val=$(find_run "${VALIDATION_RUN:-20_02_05-20sec_12harm}"); then
+  [ -z "${VALIDATION_RUN:-}" ] || { echo "$I: no validation run $VALIDATION_RUN" >&2; exit 2; }
+  val="${candidates[n - 3]}"
+fi
+train=()
+for r in "${candidates[@]}"; do
+  case " ${tests[*]} $val " in *" $r "*) ;; *) train+=("$r") ;; esac
+done
+echo "training runs (${#train[@]}): ${train[*]}"
+echo "validation run: $val; test runs: ${tests[*]}; static poses: ${poses[*]:-none}"
+
+mkdir -p "$out/data" "$out/data-paper" "$out/eval"
+cd "$out"
+logs=()
+for r in "${train[@]}"; do logs+=(--log "$I/$r.csv"); done
+"$ME" identify --robot "$D/ur10e.urdf" --layout ur10e "${logs[@]}" --validate "$I/$val.csv" \
+  --coulomb-smoothing-rad-s 0.02 -o paper-model.json > identify-paper.txt
+"$ME" identify --robot "$D/ur10e.urdf" --layout ur10e "${logs[@]}" --validate "$I/$val.csv" \
+  "${first_stage_args[@]}" -o model.json > identify.txt
+
+# dataset MODEL_JSON FOLDER CSV NAME TRIM
+dataset() {
+  "$ME" torque --robot "$D/ur10e.urdf" --model "$1" --layout ur10e --log "$3" --dataset \
+    --trim-rest-rad-s "$5" --torque-cutoff-hz 0 -o "$2/$4.csv" > /dev/null
+}
+for pair in "paper-model.json data-paper" "model.json data"; do
+  read -r m dir <<< "$pair"
+  for r in "${train[@]}" "$val"; do dataset "$m" "$dir" "$I/$r.csv" "$r" 0; done
+  for r in "${tests[@]}"; do dataset "$m" "$dir" "$I/$r.csv" "$r" 0.01; done
+  for r in "${poses[@]}"; do dataset "$m" "$dir" "$V/$r.csv" "$r" 0.01; done
+done
+evaluated=("${tests[@]}" "${poses[@]}")
+train_list() { local r s=""; for r in "${train[@]}"; do s+="$1/$r.csv,"; done; echo "${s%,}"; }
+
+nets_run=()
+for spec in "${all_nets[@]}"; do
+  read -r name preset dir <<< "$spec"
+  case " ${want_nets[*]} " in *" $name "*) ;; *) continue ;; esac
+  nets_run+=("$name")
+  echo "== $name: preset $preset on $dir/"
+  "$ME" train --data "$(train_list "$dir")" --validation-data "$dir/$val.csv" --preset "$preset" \
+    --joints "$joints" --epochs "$epochs" --lr 0.003 --seed 1 --quiet --out "lstm_$name.safetensors" \
+    --loss-plot "loss_$name.svg" --report "train_$name.json" > "train_$name.txt"
+  for r in "${evaluated[@]}"; do
+    "$ME" evaluate --model "lstm_$name.safetensors" --data "$dir/$r.csv" --preset "$preset" \
+      --joints "$joints" --baseline-data "$(train_list "$dir")" \
+      --report "eval/${name}_$r.json" > "eval/${name}_$r.txt"
+  done
+done
+
+NETS_RUN="${nets_run[*]}" EVALUATED="${evaluated[*]}" JOINT_LIST="$joints" python3 - << 'EOF'
+import csv, json, math, os, re
+
+nets = os.environ["NETS_RUN"].split()
+runs = os.environ["EVALUATED"].split()
+joints = [int(j) for j in os.environ["JOINT_LIST"].split(",")]
+
+
+def dataset_figures(path):
+    """Per joint: RMS of tau_meas - tau_model [N m] over all rows, rows with |qd| > 0.01."""
+    with open(path) as f:
+        rows = list(csv.DictReader(f))
+    out = {}
+    for j in joints:
+        e = [float(r[f"tau_meas_j{j}"]) - float(r[f"tau_model_j{j}"]) for r in rows]
+        moving = sum(abs(float(r[f"qd_j{j}"])) > 0.01 for r in rows)
+        out[j] = (math.sqrt(sum(x * x for x in e) / max(len(e), 1)), moving)
+    return out, len(rows)
+
+
+def outputs(name, run):
+    """Per joint: the evaluate report's figures for this network and run."""
+    path = f"eval/{name}_{run}.json"
+    if not os.path.exists(path):
+        return {}
+    with open(path) as f:
+        rep = json.load(f)
+    res = {}
+    for k, o in enumerate(rep["data"][0]["outputs"]):
+        m = re.match(r"tau_meas_j(\d+)", o["name"])
+        res[int(m.group(1)) if m else joints[k]] = o
+    return res
+
+
+def first(names, run, j, key):
+    for n in names:
+        v = outputs(n, run).get(j, {}).get(key)
+        if v is not None:
+            return v
+    return None
+
+
+summary = {"nets": nets, "runs": {}}
+for run in runs:
+    paper, samples = dataset_figures(f"data-paper/{run}.csv")
+    first_stage, _ = dataset_figures(f"data/{run}.csv")
+    per_joint = {}
+    for j in joints:
+        per_joint[str(j)] = {
+            "model_rms_nm": paper[j][0],
+            "first_stage_rms_nm": first_stage[j][0],
+            # Same-step presets (all rows): over the first stage's datasets, then the paper model's.
+            "baseline_rms_nm": first(["feedforward_first_stage", "drive", "paper_first_stage"], run, j, "baseline_rms_nm"),
+            "baseline_paper_model_rms_nm": first(["feedforward", "paper"], run, j, "baseline_rms_nm"),
+            "compensated_rms_nm": {n: outputs(n, run).get(j, {}).get("rms_after") for n in nets},
+            "persistence_rms_nm": first(["paper", "paper_first_stage"], run, j, "rms_persistence"),
+            "moving_samples": paper[j][1],
+        }
+    summary["runs"][run] = {"samples": samples, "joints": per_joint}
+
+with open("summary.json", "w") as f:
+    json.dump(summary, f, indent=2)
+
+
+def cell(v):
+    return "-" if v is None else f"{v:.3f}"
+
+
+head = ["run", "joint", "model", "first stage", "baseline"] + nets + ["persistence", "moving"]
+print("\nRMS [N m] over the evaluated rows (summary.json):\n")
+print("| " + " | ".join(head) + " |")
+print("|" + "---|" * 2 + "---:|" * (len(head) - 2))
+for run, r in summary["runs"].items():
+    for j, x in r["joints"].items():
+        vals = [x["model_rms_nm"], x["first_stage_rms_nm"], x["baseline_rms_nm"]]
+        vals += [x["compensated_rms_nm"][n] for n in nets] + [x["persistence_rms_nm"]]
+        print(f"| {run} | {j} | " + " | ".join(cell(v) for v in vals) + f" | {x['moving_samples']} |")
+EOF
+echo "wrote $out/summary.json"
