@@ -20,7 +20,7 @@
 # Usage: bash scripts/ur10e_compensation.sh DATASET_DIR OUT_DIR
 # Environment (optional): TEST_RUNS, VALIDATION_RUN, JOINTS (1,2,3,4,5,6), EPOCHS (60),
 # NETS (names from the table below, space separated; default all),
-# FIRST_STAGE_ARGS (default `--friction-model extended`), CARGO_TARGET_DIR.
+# FIRST_STAGE_ARGS (default `--coulomb-smoothing-rad-s 0.02 --friction-model extended`), CARGO_TARGET_DIR.
 set -euo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
 usage="usage: ur10e_compensation.sh DATASET_DIR OUT_DIR"
@@ -31,7 +31,7 @@ V="$D/validation"
 [ -f "$D/ur10e.urdf" ] && [ -d "$I" ] || { echo "$D: no ur10e.urdf or identification/" >&2; exit 2; }
 joints="${JOINTS:-1,2,3,4,5,6}"
 epochs="${EPOCHS:-60}"
-read -r -a first_stage_args <<< "${FIRST_STAGE_ARGS:---friction-model extended}"
+read -r -a first_stage_args <<< "${FIRST_STAGE_ARGS:---coulomb-smoothing-rad-s 0.02 --friction-model extended}"
 # name preset dataset-folder: the paper's presets over the paper model (as
 # scripts/ur10e_lstm.sh), the drive-side compensator and both presets over the first stage.
 all_nets=("drive drive data" "feedforward feedforward data-paper" "paper paper data-paper"
@@ -112,13 +112,27 @@ for spec in "${all_nets[@]}"; do
   case " ${want_nets[*]} " in *" $name "*) ;; *) continue ;; esac
   nets_run+=("$name")
   echo "== $name: preset $preset on $dir/"
-  "$ME" train --data "$(train_list "$dir")" --validation-data "$dir/$val.csv" --preset "$preset" \
-    --joints "$joints" --epochs "$epochs" --lr 0.003 --seed 1 --quiet --out "lstm_$name.safetensors" \
-    --loss-plot "loss_$name.svg" --report "train_$name.json" > "train_$name.txt"
-  for r in "${evaluated[@]}"; do
-    "$ME" evaluate --model "lstm_$name.safetensors" --data "$dir/$r.csv" --preset "$preset" \
-      --joints "$joints" --baseline-data "$(train_list "$dir")" \
-      --report "eval/${name}_$r.json" > "eval/${name}_$r.txt"
+  # The drive-side compensator is what each joint's drive runs: one small network per
+  # joint on that joint's own features (6 -> 16 -> LSTM 16 -> 1, the per-joint budget).
+  if [ "$preset" = drive ]; then
+    groups=(${joints//,/ })
+    size=(--embed 16 --hidden 16 --patience 15)
+  else
+    groups=("$joints")
+    size=()
+  fi
+  for g in "${groups[@]}"; do
+    tag=$name
+    [ "$preset" != drive ] || tag="${name}_j$g"
+    "$ME" train --data "$(train_list "$dir")" --validation-data "$dir/$val.csv" --preset "$preset" \
+      --joints "$g" "${size[@]}" --epochs "$epochs" --lr 0.003 --seed 1 --quiet \
+      --out "lstm_$tag.safetensors" --loss-plot "loss_$tag.svg" --report "train_$tag.json" \
+      > "train_$tag.txt"
+    for r in "${evaluated[@]}"; do
+      "$ME" evaluate --model "lstm_$tag.safetensors" --data "$dir/$r.csv" --preset "$preset" \
+        --joints "$g" --baseline-data "$(train_list "$dir")" \
+        --report "eval/${tag}_$r.json" > "eval/${tag}_$r.txt"
+    done
   done
 done
 
@@ -143,16 +157,17 @@ def dataset_figures(path):
 
 
 def outputs(name, run):
-    """Per joint: the evaluate report's figures for this network and run."""
-    path = f"eval/{name}_{run}.json"
-    if not os.path.exists(path):
-        return {}
-    with open(path) as f:
-        rep = json.load(f)
+    """Per joint: the evaluate report's figures for this network (or its per-joint
+    networks, `NAME_jN`) and run."""
     res = {}
-    for k, o in enumerate(rep["data"][0]["outputs"]):
-        m = re.match(r"tau_meas_j(\d+)", o["name"])
-        res[int(m.group(1)) if m else joints[k]] = o
+    for path in [f"eval/{name}_{run}.json"] + [f"eval/{name}_j{j}_{run}.json" for j in joints]:
+        if not os.path.exists(path):
+            continue
+        with open(path) as f:
+            rep = json.load(f)
+        for k, o in enumerate(rep["data"][0]["outputs"]):
+            m = re.match(r"tau_meas_j(\d+)", o["name"])
+            res[int(m.group(1)) if m else joints[k]] = o
     return res
 
 

@@ -1,6 +1,10 @@
 //! Identified rigid-body model of the modelled joints, evaluated in f32 with a fixed
 //! operation count: `tau = RNEA(q, qd, qdd; equivalent standard parameters) +
-//! fv*qd + fc*sgn(qd) + fo + Ia*qdd`.
+//! fv*qd + fc*sgn(qd) + fo + Ia*qdd` plus the extended friction basis (linear in its
+//! coefficients, zero in the paper's model): velocity-weakening (Stribeck-shaped) terms
+//! `fs_k*tanh(qd/v_k)` at the fixed speeds [`STRIBECK_SPEEDS_RAD_S`] and a quadratic drag
+//! `fq*qd*|qd|`. A term whose coefficient is zero is skipped: the work is fixed for a
+//! given model.
 //!
 //! [`RigidBodyModel<N>`] holds, per modelled joint, the fixed transform from the
 //! previous modelled body (locked joints folded in), the rotation axis, the body-frame
@@ -13,6 +17,15 @@
 //! Frames: body `i` = body `i-1` x `(origin_rotation, origin_translation)` x
 //! `Rot(axis, q_i)`; body `-1` is the base, where `gravity_m_s2` is expressed.
 use crate::math;
+
+/// Number of velocity-weakening friction terms per joint.
+pub const STRIBECK_TERMS: usize = 3;
+
+/// Speeds `v_k` [rad/s] of the velocity-weakening terms `tanh(qd / v_k)`.
+pub const STRIBECK_SPEEDS_RAD_S: [f32; STRIBECK_TERMS] = [0.05, 0.2, 1.0];
+
+/// `1 / v_k` [s/rad] of [`STRIBECK_SPEEDS_RAD_S`] (exact in f32).
+pub const STRIBECK_INV_SPEEDS_S_RAD: [f32; STRIBECK_TERMS] = [20.0, 5.0, 1.0];
 
 /// One modelled joint and its (merged) link.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -35,9 +48,26 @@ pub struct JointModel {
     pub offset_nm: f32,
     /// Reflected rotor inertia [kg*m^2].
     pub rotor_inertia_kg_m2: f32,
+    /// Velocity-weakening friction per [`STRIBECK_SPEEDS_RAD_S`] entry [N*m].
+    pub stribeck_nm: [f32; STRIBECK_TERMS],
+    /// Quadratic drag `qd*|qd|` [N*m*s^2/rad^2].
+    pub quadratic_nm_s2_rad2: f32,
 }
 
 impl JointModel {
+    /// The extended friction basis' torque [N*m] at speed `qd` [rad/s]: the
+    /// Stribeck-shaped terms (those with a non-zero coefficient) and the quadratic drag.
+    #[inline]
+    pub fn extended_friction_nm(&self, qd_rad_s: f32) -> f32 {
+        let mut tau = self.quadratic_nm_s2_rad2 * qd_rad_s * qd_rad_s.abs();
+        for (f, inv) in self.stribeck_nm.iter().zip(STRIBECK_INV_SPEEDS_S_RAD) {
+            if *f != 0.0 {
+                tau += f * math::tanh(qd_rad_s * inv);
+            }
+        }
+        tau
+    }
+
     /// A massless, frictionless joint about z at the previous body's origin.
     pub const ZERO: JointModel = JointModel {
         origin_rotation: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
@@ -48,6 +78,8 @@ impl JointModel {
         coulomb_nm: 0.0,
         offset_nm: 0.0,
         rotor_inertia_kg_m2: 0.0,
+        stribeck_nm: [0.0; STRIBECK_TERMS],
+        quadratic_nm_s2_rad2: 0.0,
     };
 }
 
@@ -114,10 +146,9 @@ fn inertia_mul(p: &[f32; 10], v: &V3) -> V3 {
     ]
 }
 
-/// `R0 * Rot(a, q)` (Rodrigues), row-major.
+/// `R0 * Rot(a, q)` (Rodrigues) from `(sin q, cos q)`, row-major.
 #[inline]
-fn joint_rotation(r0: &[[f32; 3]; 3], a: &V3, q: f32) -> [[f32; 3]; 3] {
-    let (s, c) = math::sin_cos(q);
+fn joint_rotation(r0: &[[f32; 3]; 3], a: &V3, (s, c): (f32, f32)) -> [[f32; 3]; 3] {
     let t = 1.0 - c;
     let rq = [
         [
@@ -159,7 +190,7 @@ impl<const N: usize> RigidBodyModel<N> {
         let mut acc_p: V3 = [-g[0], -g[1], -g[2]];
         for i in 0..N {
             let j = &self.joints[i];
-            let r = joint_rotation(&j.origin_rotation, &j.axis, q[i]);
+            let r = joint_rotation(&j.origin_rotation, &j.axis, math::sin_cos(q[i]));
             let p = &j.origin_translation_m;
             // Linear acceleration of the new origin, in the new frame.
             let a_p = add(
@@ -219,7 +250,8 @@ impl<const N: usize> RigidBodyModel<N> {
                 + j.viscous_nm_s_rad * qd[k]
                 + j.coulomb_nm * sgn
                 + j.offset_nm
-                + j.rotor_inertia_kg_m2 * qdd[k];
+                + j.rotor_inertia_kg_m2 * qdd[k]
+                + j.extended_friction_nm(qd[k]);
             f_c = f;
             n_c = n;
         }

@@ -185,6 +185,9 @@ pub fn dynamics_model() -> RigidBodyModel<DYNAMICS_JOINTS> {
         j.coulomb_nm = fr[1];
         j.offset_nm = fr[2];
         j.rotor_inertia_kg_m2 = fr[3];
+        // The extended friction basis, so the suite covers its terms too.
+        j.stribeck_nm = [0.3 * fr[1], -0.1 * fr[1], 0.05 * fr[0]];
+        j.quadratic_nm_s2_rad2 = 0.2 * fr[0];
     }
     RigidBodyModel {
         joints,

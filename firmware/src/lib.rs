@@ -12,6 +12,7 @@ pub mod control;
 pub mod drivers;
 pub mod dsp;
 pub mod dynamics;
+pub mod features;
 pub mod golden;
 pub mod log;
 pub mod lstm;

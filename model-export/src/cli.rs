@@ -103,6 +103,8 @@ pub enum PaperOutput {
     Next,
     /// The increment over the measured torque now.
     Increment,
+    /// The residual over the model's torque at the next step.
+    Relative,
 }
 
 impl FeatureArgs {
@@ -111,10 +113,13 @@ impl FeatureArgs {
             "paper" if self.paper_output == PaperOutput::Increment => {
                 Ok(FeatureSpec::paper_increment(&self.joints))
             }
-            "paper" => Ok(FeatureSpec::paper(&self.joints)),
-            "feedforward" => Ok(FeatureSpec::feedforward(&self.joints)),
+            "paper" if self.paper_output == PaperOutput::Relative => {
+                Ok(FeatureSpec::paper_relative(&self.joints))
+            }
             "custom" => FeatureSpec::custom(&self.inputs, &self.targets, self.shift),
-            other => bail!("unknown preset `{other}` (paper, feedforward, custom)"),
+            other => FeatureSpec::for_preset(other, &self.joints).with_context(|| {
+                format!("unknown preset `{other}` (paper, feedforward, drive, custom)")
+            }),
         }
     }
 }
@@ -266,6 +271,16 @@ fn train_cmd(a: TrainArgs) -> Result<()> {
         te.push(z);
     }
     va.extend(load(&a.validation_data, &spec)?);
+    // The `drive` preset's linear stage first (least squares on the training steps); the
+    // network then learns what it leaves. The test blocks keep the whole targets.
+    let linear = if spec.preset == "drive" {
+        let w = train::fit_linear_stage(&tr, spec.targets.len())?;
+        train::subtract_linear_stage(&w, &mut tr)?;
+        train::subtract_linear_stage(&w, &mut va)?;
+        w
+    } else {
+        Vec::new()
+    };
     let all_train = Sequence {
         inputs: tr.iter().flat_map(|s| s.inputs.clone()).collect(),
         targets: tr.iter().flat_map(|s| s.targets.clone()).collect(),
@@ -278,12 +293,19 @@ fn train_cmd(a: TrainArgs) -> Result<()> {
         &spec.preset,
         &cfg,
     )?;
-    let (model, hist) = train::train(
-        &init,
-        &tr.iter().collect::<Vec<_>>(),
-        &va.iter().collect::<Vec<_>>(),
-        &cfg,
-    )?;
+    let val: Vec<&Sequence> = va.iter().collect();
+    let (mut model, hist) = train::train(&init, &tr.iter().collect::<Vec<_>>(), &val, &cfg)?;
+    // Only on whole held-out runs: a block of the training runs would not tell.
+    let gains = if held_out {
+        train::shrink_residual_outputs(&mut model, &val)?
+    } else {
+        vec![1.0; model.dims.output]
+    };
+    if gains.iter().any(|&g| g != 1.0) {
+        println!("output gains on the validation runs (do-no-harm shrinkage): {gains:?}");
+    }
+    model.linear = linear;
+    model.validate()?;
     io::write_model(&model, &a.out)?;
     plot::loss_curve(&hist, &a.loss_plot)?;
     println!(
@@ -309,7 +331,7 @@ fn train_cmd(a: TrainArgs) -> Result<()> {
     println!("wrote {} and {}", a.out.display(), a.loss_plot.display());
     if let Some(r) = a.report {
         let j = serde_json::json!({"preset": spec.preset, "lr": hist.lr, "lr_trials": hist.lr_trials,
-            "epochs": hist.train.len(), "best_epoch": hist.best_epoch + 1, "train_loss": hist.train, "val_loss": hist.val, "test": reports});
+            "epochs": hist.train.len(), "best_epoch": hist.best_epoch + 1, "output_gains": gains, "train_loss": hist.train, "val_loss": hist.val, "test": reports});
         crate::nn::write_atomic(&r, serde_json::to_string_pretty(&j)?.as_bytes())?;
     }
     Ok(())

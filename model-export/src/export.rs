@@ -829,6 +829,13 @@ fn write_dynamics<const N: usize>(s: &mut String, m: &RigidBodyModel<N>) {
             "            rotor_inertia_kg_m2: {},",
             f32_lit(j.rotor_inertia_kg_m2)
         );
+        let f = |x: &f32| f32_lit(*x);
+        let _ = writeln!(s, "            stribeck_nm: {},", list(&j.stribeck_nm, f));
+        let _ = writeln!(
+            s,
+            "            quadratic_nm_s2_rad2: {},",
+            f32_lit(j.quadratic_nm_s2_rad2)
+        );
         let _ = writeln!(s, "        }},");
     }
     let _ = writeln!(s, "    ],");
@@ -876,6 +883,7 @@ pub fn render(
     let preset = match meta.preset.as_str() {
         "paper" => "Paper",
         "feedforward" => "Feedforward",
+        "drive" => "Drive",
         _ => "Custom",
     };
     let s = &mut body;
@@ -900,6 +908,24 @@ pub fn render(
     let _ = writeln!(s, "pub const INPUTS: usize = {};", m.dims.input);
     let _ = writeln!(s, "/// Number of outputs.");
     let _ = writeln!(s, "pub const OUTPUTS: usize = {};", m.dims.output);
+    let _ = writeln!(
+        s,
+        "/// The `drive` preset's linear stage: per output, coefficients [N*m per unit] of\n\
+         /// `features::FRICTION_FEATURE_NAMES` (zero for other presets)."
+    );
+    let f = firmware::features::FRICTION_FEATURES;
+    let rows: Vec<Vec<f32>> = (0..m.dims.output)
+        .map(|k| {
+            m.linear
+                .get(k * f..(k + 1) * f)
+                .map_or_else(|| vec![0.0; f], <[f32]>::to_vec)
+        })
+        .collect();
+    let _ = writeln!(
+        s,
+        "pub static LINEAR_STAGE: [[f32; crate::features::FRICTION_FEATURES]; OUTPUTS] = {};",
+        list(&rows, |r| list(r, |x| f32_lit(*x)))
+    );
     let _ = writeln!(s, "/// Input feature names, in input order.");
     let _ = writeln!(
         s,
@@ -972,13 +998,14 @@ pub fn render(
     );
     let _ = writeln!(
         out,
-        "// Network {}x{}x{}x{} ({}), preset `{}`, joints {:?}, {} Hz.",
+        "// Network {}x{}x{}x{} ({}), preset {}, joints {:?}, {} Hz.",
         m.dims.input,
         m.dims.embed,
         m.dims.hidden,
         m.dims.output,
         prec,
-        meta.preset,
+        // The closed set's name, never the model file's text.
+        preset,
         meta.joints,
         meta.control_rate_hz
     );
@@ -1063,6 +1090,40 @@ pub mod cli {
         /// With `--accuracy-log`: also write the accuracy rows as JSON here.
         #[arg(long, requires = "accuracy_log")]
         pub accuracy_json: Option<PathBuf>,
+        /// Do-no-harm gate: validation runs (compensation datasets, whole runs the
+        /// network never trained on; repeat or comma-separate). A trained network is
+        /// refused when, on any of them, it is worse than the model alone on any
+        /// compensated joint. Required with `--model` unless `--allow-worse`.
+        #[arg(long = "gate-data", value_name = "CSV", value_delimiter = ',')]
+        pub gate_data: Vec<PathBuf>,
+        /// Export even when the gate finds the network worse than the model alone (or
+        /// without `--gate-data`); the generated file then carries a warning.
+        #[arg(long)]
+        pub allow_worse: bool,
+    }
+
+    /// Per validation run and compensated joint: the model alone's and the compensated
+    /// RMS [N*m] (f32 firmware step), for the do-no-harm gate.
+    fn gate(m: &LstmModel, a: &ExportArgs) -> Result<Vec<(PathBuf, usize, f64, f64)>> {
+        let spec = crate::nn::data::FeatureSpec::for_preset(&m.preset, &a.joints)
+            .with_context(|| {
+                format!(
+                    "--gate-data needs a `paper`, `feedforward` or `drive` network (this one: `{}`)",
+                    m.preset
+                )
+            })?;
+        spec.check_model(m)?;
+        let mut rows = Vec::new();
+        for path in &a.gate_data {
+            let table = crate::nn::data::Table::read(path)?;
+            let seq = spec
+                .sequence(&table)
+                .with_context(|| format!("{}", path.display()))?;
+            for (e, &joint) in crate::nn::eval::evaluate(m, &seq)?.iter().zip(&a.joints) {
+                rows.push((path.clone(), joint, e.rms_before, e.rms_after));
+            }
+        }
+        Ok(rows)
     }
 
     /// Reads the board's flash limit from a budget file.
@@ -1116,11 +1177,7 @@ pub mod cli {
                 // Feature names of the preset for the joint numbers (checked here), when
                 // the sizes fit it.
                 joint_indices(a)?;
-                let spec = match a.preset.as_str() {
-                    "paper" => Some(crate::nn::data::FeatureSpec::paper(&a.joints)),
-                    "feedforward" => Some(crate::nn::data::FeatureSpec::feedforward(&a.joints)),
-                    _ => None,
-                };
+                let spec = crate::nn::data::FeatureSpec::for_preset(&a.preset, &a.joints);
                 if let Some(spec) = spec.filter(|s| s.inputs.len() == i && s.targets.len() == o) {
                     m.output_names = spec.output_names();
                     m.input_names = spec.inputs;
@@ -1132,16 +1189,17 @@ pub mod cli {
 
     /// Exports `m` to `a.out`; returns the exported network.
     pub fn export(m: &LstmModel, a: &ExportArgs) -> Result<Exported> {
-        let increment = m
+        let difference = m
             .output_names
             .iter()
-            .find(|n| crate::nn::data::is_increment_name(n));
-        if let Some(name) = increment {
+            .find(|n| crate::nn::data::is_shifted_difference_name(n));
+        if let Some(name) = difference {
             bail!(
-                "the model predicts an increment over one of its inputs (output `{name}`, \
-                 `train --paper-output increment`): fed forward in a drive it closes a \
-                 unit-gain loop on the applied torque (model-export/README.md); export a \
-                 network trained with `--paper-output next`"
+                "the model predicts a future torque as a difference (output `{name}`, \
+                 `train --paper-output increment` or `relative`): it leans on the measured \
+                 torque through a residual path, and fed forward in a drive that closes a \
+                 loop on the applied torque (model-export/README.md); export a network \
+                 trained with `--paper-output next`, or the `drive` preset"
             );
         }
         let net = Exported::new(m, a.precision).with_context(|| {
@@ -1182,7 +1240,17 @@ pub mod cli {
             control_rate_hz: a.control_rate_hz,
             self_check_steps: a.self_check_steps,
         };
-        let text = render(m, &net, &meta, dynamics.as_ref());
+        let mut text = render(m, &net, &meta, dynamics.as_ref());
+        if a.model.is_some() {
+            let warning = do_no_harm(m, a)?;
+            if !warning.is_empty() {
+                eprintln!("warning: exported anyway (--allow-worse):\n{warning}");
+                let commented: String = warning.lines().map(|l| format!("// {l}\n")).collect();
+                text = format!(
+                    "// WARNING: exported with --allow-worse; the do-no-harm gate did not pass:\n{commented}{text}"
+                );
+            }
+        }
         crate::nn::write_atomic(&a.out, text.as_bytes())?;
         // A source file: readable like any other (the temporary file was 0600).
         #[cfg(unix)]
@@ -1192,6 +1260,50 @@ pub mod cli {
                 .with_context(|| format!("setting permissions of {}", a.out.display()))?;
         }
         Ok(net)
+    }
+
+    /// The do-no-harm gate of a trained network: an error listing the per-joint figures
+    /// when it is worse than the model alone on any validation run and joint (or has no
+    /// validation runs); with `--allow-worse`, that listing as a warning instead (empty
+    /// when the gate passes). The listing holds numbers and file names of the
+    /// validation runs (by number) only.
+    fn do_no_harm(m: &LstmModel, a: &ExportArgs) -> Result<String> {
+        if a.gate_data.is_empty() {
+            if a.allow_worse {
+                return Ok(
+                    "no --gate-data: the network was not checked against the model alone".into(),
+                );
+            }
+            bail!(
+                "exporting a trained network needs --gate-data VALIDATION.csv (whole runs it \
+                 never trained on) for the do-no-harm gate, or --allow-worse"
+            );
+        }
+        let rows = gate(m, a)?;
+        // Runs by number (their paths go to stderr only: input never enters the file).
+        for (k, path) in a.gate_data.iter().enumerate() {
+            eprintln!("gate run {}: {}", k + 1, path.display());
+        }
+        let mut table = String::from("run | joint | model alone RMS N*m | compensated RMS N*m\n");
+        let mut worse = false;
+        for (path, joint, before, after) in &rows {
+            worse |= after.is_nan() || before.is_nan() || after > before;
+            let run = a
+                .gate_data
+                .iter()
+                .position(|p| p == path)
+                .map_or(0, |k| k + 1);
+            table += &format!("{run} | {joint} | {before:.4} | {after:.4}\n");
+        }
+        eprint!("do-no-harm gate:\n{table}");
+        match (worse, a.allow_worse) {
+            (false, _) => Ok(String::new()),
+            (true, true) => Ok(table),
+            (true, false) => bail!(
+                "the network is worse than the model alone on a validation run (do-no-harm \
+                 gate; --allow-worse overrides):\n{table}"
+            ),
+        }
     }
 
     /// Runs the subcommand.
@@ -1206,13 +1318,13 @@ pub mod cli {
         );
         if let Some(log) = &a.accuracy_log {
             let table = crate::nn::data::Table::read(log)?;
-            let spec = match m.preset.as_str() {
-                "paper" => crate::nn::data::FeatureSpec::paper(&a.joints),
-                "feedforward" => crate::nn::data::FeatureSpec::feedforward(&a.joints),
-                other => bail!(
-                    "--accuracy-log needs a `paper` or `feedforward` model (this one: `{other}`)"
-                ),
-            };
+            let spec = crate::nn::data::FeatureSpec::for_preset(&m.preset, &a.joints)
+                .with_context(|| {
+                    format!(
+                        "--accuracy-log needs a `paper`, `feedforward` or `drive` model (this one: `{}`)",
+                        m.preset
+                    )
+                })?;
             spec.check_model(&m)
                 .with_context(|| format!("{}", log.display()))?;
             let seq = spec

@@ -72,6 +72,10 @@ pub struct ModelTermsRef {
     pub coulomb_smoothing_rad_s: Option<f64>,
     /// Reflected rotor inertia per joint.
     pub rotor_inertia: bool,
+    /// The extended friction basis per joint (offset, velocity-weakening, quadratic and
+    /// pose terms); absent in older files (false).
+    #[serde(default)]
+    pub extended_friction: bool,
 }
 
 /// A log used for identification or validation.
@@ -173,6 +177,16 @@ impl ModelFile {
 /// Writes `bytes` to `path` via a temporary file in the same directory and a rename:
 /// either the whole new content is there, or the old state is untouched.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> anyhow::Result<()> {
+    // Renaming over a device, a directory or a pipe would replace it (`-o /dev/null`
+    // once replaced the system's null device with a file): only regular files.
+    if let Ok(meta) = std::fs::metadata(path)
+        && !meta.is_file()
+    {
+        anyhow::bail!(
+            "{}: exists and is not a regular file; refusing to replace it",
+            path.display()
+        );
+    }
     let dir = match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),
@@ -184,6 +198,14 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> anyhow::Result<()> {
             dir.display()
         )
     })?;
+    // Readable like any other output (the temporary file is created 0600).
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        tmp.as_file()
+            .set_permissions(std::fs::Permissions::from_mode(0o644))
+            .map_err(|e| anyhow::anyhow!("{}: write failed: {e}", path.display()))?;
+    }
     tmp.write_all(bytes)
         .and_then(|_| tmp.as_file().sync_all())
         .map_err(|e| anyhow::anyhow!("{}: write failed: {e}", path.display()))?;
@@ -213,6 +235,7 @@ mod tests {
                 friction_offset: false,
                 coulomb_smoothing_rad_s: Some(0.02),
                 rotor_inertia: false,
+                extended_friction: false,
             },
             base_seed: 1,
             drive_gains_nm_per_a: vec![1.0],

@@ -256,6 +256,11 @@ fn featherstone(
             None => qd[r].signum() * if qd[r] == 0.0 { 0.0 } else { 1.0 },
         };
         tau[r] += get("fv") * qd[r] + get("fc") * sgn + get("fo") + get("Ia") * qdd[r];
+        // The extended friction basis, written out from its definition.
+        for (k, v) in [0.05, 0.2, 1.0].iter().enumerate() {
+            tau[r] += get(&format!("fs{}_", k + 1)) * (qd[r] / v).tanh();
+        }
+        tau[r] += get("fq") * qd[r] * qd[r].abs();
     }
     tau
 }
@@ -667,6 +672,31 @@ fn firmware_f32_model_matches_f64() {
         );
     }
     assert!(build_firmware_model::<5>(&robot, &robot.standard_parameters()).is_err());
+}
+
+#[test]
+fn extended_friction_basis_matches_its_definition_in_f64_and_f32() {
+    let mut robot = ur_like();
+    robot.terms.extended_friction = true;
+    robot.terms.coulomb_smoothing_rad_s = Some(0.02);
+    let names = robot.parameter_names();
+    for name in ["fo4", "fs1_4", "fs3_4", "fq4"] {
+        assert!(names.iter().any(|n| n == name), "no parameter {name}");
+    }
+    println!(
+        "extended friction, all joints: worst relative error {:.2e}",
+        check_against_featherstone(&robot, 11)
+    );
+    let mut paper = robot.default_paper_selection();
+    paper.lock_joint(0, 0.3);
+    paper.lock_joint(1, -1.2);
+    paper.lock_joint(2, 0.9);
+    let mut rng = ChaCha8Rng::seed_from_u64(12);
+    let theta = random_theta(&mut rng, paper.parameter_count());
+    println!(
+        "extended friction, 1-3 locked, f32: worst {:.2e}",
+        check_firmware::<3>(&paper, &theta, 13)
+    );
 }
 
 // ---------------------------------------------------------------------------------

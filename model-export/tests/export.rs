@@ -29,6 +29,8 @@ fn args(out: PathBuf, precision: Precision) -> ExportArgs {
         accuracy_log: None,
         identified: None,
         accuracy_json: None,
+        gate_data: Vec::new(),
+        allow_worse: false,
     }
 }
 
@@ -164,6 +166,11 @@ fn an_increment_network_is_refused_and_writes_nothing() {
     assert!(text.contains("tau_meas_j4@+1-tau_meas_j4@0"), "{text}");
     assert!(text.contains("--paper-output next"), "{text}");
     assert!(!out.exists(), "a refused export left {}", out.display());
+    // So is the form relative to the model torque.
+    m.output_names = model_export::nn::data::FeatureSpec::paper_relative(&[4]).output_names();
+    let text = format!("{:#}", export::cli::export(&m, &a).unwrap_err());
+    assert!(text.contains("tau_meas_j4-tau_model_j4@+1"), "{text}");
+    assert!(!out.exists(), "a refused export left {}", out.display());
     // The same network with the next-step output exports.
     m.output_names = model_export::nn::data::FeatureSpec::paper(&[4]).output_names();
     export::cli::export(&m, &a).expect("next-step paper network exports");
@@ -192,4 +199,83 @@ fn a_model_over_the_flash_budget_is_refused_and_writes_nothing() {
     a.budgets = Some(workspace().join("host-tests/budgets.toml"));
     export::cli::export(&m, &a).expect("fits the board budget");
     assert!(out.exists());
+}
+
+/// A `drive` network for joint 4 (6 inputs), and a validation run on which the model
+/// alone is exact: any non-zero correction makes the network worse.
+fn gate_case(dir: &Path) -> (LstmModel, PathBuf) {
+    let mut m = LstmModel::init(
+        LstmDims {
+            input: 6,
+            embed: 4,
+            hidden: 4,
+            output: 1,
+        },
+        9,
+    );
+    let spec = model_export::nn::data::FeatureSpec::drive(&[4]);
+    m.preset = "drive".into();
+    m.input_names = spec.inputs.clone();
+    m.output_names = spec.output_names();
+    let run = dir.join("validation.csv");
+    let mut csv = String::from("time_s");
+    for name in ["tau_meas_j4"]
+        .iter()
+        .copied()
+        .chain(spec.inputs.iter().map(String::as_str))
+    {
+        csv += &format!(",{name}");
+    }
+    csv += "\n";
+    for k in 0..200 {
+        let t = k as f64 * 0.01;
+        let (q, qd) = ((0.7 * t).sin(), 0.7 * (0.7 * t).cos());
+        let tau = 2.0 * q.sin() + 0.3 * qd;
+        // tau_meas, sin q, cos q, qd, qdd, tau_model, rest_dir
+        csv += &format!("{t},{tau},{},{},{qd},0,{tau},0\n", q.sin(), q.cos());
+    }
+    std::fs::write(&run, csv).unwrap();
+    (m, run)
+}
+
+#[test]
+fn the_do_no_harm_gate_refuses_a_network_worse_than_the_model() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let out = dir.path().join("model.rs");
+    let (mut m, run) = gate_case(dir.path());
+    let mut a = args(out.clone(), Precision::Int16);
+    a.dims = vec![6, 4, 4, 1];
+    a.preset = "drive".into();
+    a.joints = vec![4];
+    a.model = Some(dir.path().join("trained.safetensors"));
+    // A trained network needs validation runs (or --allow-worse).
+    let text = format!("{:#}", export::cli::export(&m, &a).unwrap_err());
+    assert!(text.contains("--gate-data"), "{text}");
+    assert!(!out.exists());
+    // A seeded network corrects an exact model: worse, refused, nothing written.
+    a.gate_data = vec![run.clone()];
+    let text = format!("{:#}", export::cli::export(&m, &a).unwrap_err());
+    assert!(text.contains("worse than the model alone"), "{text}");
+    assert!(text.contains("1 | 4 | 0.0000 |"), "{text}");
+    assert!(!out.exists(), "a refused export left {}", out.display());
+    // --allow-worse exports it with the figures as a warning in the file.
+    a.allow_worse = true;
+    export::cli::export(&m, &a).expect("--allow-worse exports");
+    let text = std::fs::read_to_string(&out).unwrap();
+    assert!(
+        text.starts_with("// WARNING: exported with --allow-worse"),
+        "{text}"
+    );
+    assert!(
+        !text.contains("validation.csv"),
+        "input pasted into the file"
+    );
+    // A network that outputs no correction is as good as the model: it passes.
+    std::fs::remove_file(&out).unwrap();
+    a.allow_worse = false;
+    m.w_out.iter_mut().for_each(|w| *w = 0.0);
+    m.b_out.iter_mut().for_each(|b| *b = 0.0);
+    m.output_mean.iter_mut().for_each(|b| *b = 0.0);
+    export::cli::export(&m, &a).expect("a network that does no harm exports");
+    assert!(!std::fs::read_to_string(&out).unwrap().contains("WARNING"));
 }

@@ -25,6 +25,7 @@ fn robot_model() -> RobotBaseModel {
         lock: vec![],
         friction_offset: false,
         coulomb_smoothing_rad_s: None,
+        friction_model: model_export::identify::commands::FrictionModel::Paper,
     };
     RobotBaseModel::new(load_robot(Path::new(ROBOT), &joints).unwrap()).unwrap()
 }

@@ -306,16 +306,108 @@ fn presets_align_inputs_and_targets() {
     let inc = FeatureSpec::paper_increment(&[4]);
     assert_eq!(inc.inputs, FeatureSpec::paper(&[4]).inputs);
     assert_eq!(inc.output_names(), ["tau_meas_j4@+1-tau_meas_j4@0"]);
-    assert!(model_export::nn::data::is_increment_name(
-        &inc.output_names()[0]
-    ));
-    assert!(!model_export::nn::data::is_increment_name(
-        &FeatureSpec::paper(&[4]).output_names()[0]
-    ));
+    use model_export::nn::data::is_shifted_difference_name as loop_closing;
+    assert!(loop_closing(&inc.output_names()[0]));
+    for spec in [
+        FeatureSpec::paper(&[4]),
+        FeatureSpec::feedforward(&[4]),
+        FeatureSpec::drive(&[4]),
+    ] {
+        assert!(!loop_closing(&spec.output_names()[0]), "{spec:?}");
+    }
     let p = inc.sequence(&table).unwrap();
     assert_eq!(p.targets[0], vec![1.0]);
     assert_eq!(p.offset[0], vec![20.0]);
     assert_eq!(p.model_only[0], vec![11.0]);
     assert_eq!(p.persistence[0], vec![Some(0.0)]);
+    // The relative form: everything relative to the model's torque at the target step.
+    let rel = FeatureSpec::paper_relative(&[4]);
+    assert_eq!(rel.output_names(), ["tau_meas_j4-tau_model_j4@+1"]);
+    assert!(loop_closing(&rel.output_names()[0]));
+    let p = rel.sequence(&table).unwrap();
+    assert_eq!(p.targets[0], vec![21.0 - 31.0]);
+    assert_eq!(p.offset[0], vec![31.0]);
+    assert_eq!(p.model_only[0], vec![0.0]);
+    assert_eq!(p.persistence[0], vec![Some(20.0 - 31.0)]);
     let _ = Sequence::default();
+}
+
+/// The `drive` preset's linear stage: least squares recovers a target that is a
+/// combination of the friction features, the stage round-trips through safetensors, the
+/// streamed output adds it to the network's, and a linear stage on another preset is
+/// refused.
+#[test]
+fn drive_linear_stage_is_fitted_stored_and_streamed() {
+    use firmware::features::{FRICTION_FEATURES, friction_features};
+    use model_export::nn::{io, train};
+    let joints = [4, 5];
+    let spec = FeatureSpec::drive(&joints);
+    let truth: Vec<f32> = (0..2 * FRICTION_FEATURES)
+        .map(|k| ((k * 7 % 11) as f32 - 5.0) * 0.1)
+        .collect();
+    let mut seq = Sequence::default();
+    for t in 0..400 {
+        let x: Vec<f32> = (0..12)
+            .map(|i| ((t * (i + 3)) as f32 * 0.013).sin() * (1.0 + i as f32 * 0.3))
+            .collect();
+        let y: Vec<f32> = (0..2)
+            .map(|k| {
+                let xk: [f32; 6] = std::array::from_fn(|kind| x[kind * 2 + k]);
+                let f = friction_features(&xk);
+                (0..FRICTION_FEATURES)
+                    .map(|c| truth[k * FRICTION_FEATURES + c] * f[c])
+                    .sum()
+            })
+            .collect();
+        seq.inputs.push(x);
+        seq.targets.push(y);
+    }
+    let w = train::fit_linear_stage(std::slice::from_ref(&seq), 2).unwrap();
+    let worst = w
+        .iter()
+        .zip(&truth)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0f32, f32::max);
+    assert!(worst < 1e-3, "coefficients off by {worst}");
+    let mut left = vec![seq.clone()];
+    train::subtract_linear_stage(&w, &mut left).unwrap();
+    let rest = left[0]
+        .targets
+        .iter()
+        .flatten()
+        .fold(0.0f32, |m, v| m.max(v.abs()));
+    assert!(rest < 1e-3, "the stage leaves {rest}");
+
+    let mut m = LstmModel::init(
+        firmware::lstm::LstmDims {
+            input: 12,
+            embed: 4,
+            hidden: 4,
+            output: 2,
+        },
+        3,
+    );
+    m.preset = "drive".into();
+    m.input_names = spec.inputs.clone();
+    m.output_names = spec.output_names();
+    let plain = m.stream(&seq.inputs).unwrap();
+    m.linear = w.clone();
+    let with = m.stream(&seq.inputs).unwrap();
+    for (t, (a, b)) in plain.iter().zip(&with).enumerate() {
+        for k in 0..2 {
+            let want = a[k] + seq.targets[t][k];
+            assert!(
+                (b[k] - want).abs() < 1e-3,
+                "step {t} output {k}: {} vs {want}",
+                b[k]
+            );
+        }
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("drive.safetensors");
+    io::write_model(&m, &path).unwrap();
+    assert_eq!(io::read_model(&path).unwrap(), m);
+    m.preset = "feedforward".into();
+    let e = format!("{:#}", m.validate().unwrap_err());
+    assert!(e.contains("linear.weight") && e.contains("drive"), "{e}");
 }

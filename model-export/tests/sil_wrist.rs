@@ -28,6 +28,7 @@ fn nominal_model() -> firmware::dynamics::RigidBodyModel<3> {
             lock: vec!["1=0".into(), "2=0".into(), "3=0".into()],
             friction_offset: false,
             coulomb_smoothing_rad_s: None,
+            friction_model: model_export::identify::commands::FrictionModel::Paper,
         },
     )
     .unwrap();
@@ -158,7 +159,8 @@ fn cli_simulate_identify_sil_writes_markdown_and_json() {
     cli(&tq).unwrap();
     let header = std::fs::read_to_string(&feat).unwrap();
     assert!(header.starts_with(
-        "time_s,q_j4,q_j5,q_j6,qd_j4,qd_j5,qd_j6,tau_meas_j4,tau_meas_j5,tau_meas_j6,tau_model_j4,tau_model_j5,tau_model_j6\n"
+        "time_s,q_j4,q_j5,q_j6,qd_j4,qd_j5,qd_j6,tau_meas_j4,tau_meas_j5,tau_meas_j6,tau_model_j4,tau_model_j5,tau_model_j6,\
+         qdd_j4,qdd_j5,qdd_j6,sin_q_j4,sin_q_j5,sin_q_j6,cos_q_j4,cos_q_j5,cos_q_j6,rest_dir_j4,rest_dir_j5,rest_dir_j6\n"
     ));
     cli(&[
         "sil",

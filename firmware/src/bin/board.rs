@@ -188,13 +188,15 @@ fn main() -> ! {
             });
         }
     });
-    // The LSTM stage: the compiled-in network in its preset's feature layout.
+    // The LSTM stage: the compiled-in network in its preset's feature layout (with the
+    // `drive` preset's linear stage).
     let Some(lstm) = LstmPredictor::<_, JOINTS, { compiled::INPUTS }>::new(
         &compiled::NETWORK,
         compiled::FEATURE_PRESET,
     ) else {
         cortex_m::asm::udf();
     };
+    let lstm = lstm.with_linear_stage(compiled::LINEAR_STAGE);
     let Ok(mut compensator) = Compensator::<JOINTS, _, _>::new(COMPENSATOR_CONFIG, model(), lstm)
     else {
         cortex_m::asm::udf();

@@ -4,14 +4,16 @@
 //!   held at fixed positions, e.g. the wrist of a 6-joint arm): the model stage;
 //! - [`LstmPredictor`]: the exported LSTM in any precision behind [`TorqueNetwork`],
 //!   for the `paper` preset (next-step torque from model torque, measured torque and
-//!   position) or the `feedforward` preset (model torque + learned residual): the
-//!   LSTM stage;
+//!   position), the `feedforward` preset (model torque + learned
+//!   residual) or the `drive` preset (model torque + residual learned from the drive's
+//!   own features, `crate::features`): the LSTM stage;
 //! - [`DecoupledJointModel`]: a per-joint model without coupling (tests, bring-up).
 //!
 //! All run in fixed time, without heap or panic paths.
 
 use super::compensator::{PredictorInput, TorquePredictor};
 use crate::dynamics::RigidBodyModel;
+use crate::features::{self, DRIVE_INPUTS_PER_JOINT, FRICTION_FEATURES, RestDirection};
 use crate::math;
 use crate::model::FeaturePreset;
 use crate::quant::{F32Lstm, F32State, QuantFormat, QuantLstm, QuantState};
@@ -124,8 +126,8 @@ impl<T: TorqueNetwork<I, O> + ?Sized, const I: usize, const O: usize> TorqueNetw
     }
 }
 
-/// The LSTM stage for `J` joints (`I = 3 J` inputs, `J` outputs, checked at compile
-/// time), in the feature layout of its preset (all joints of one kind, then the next):
+/// The LSTM stage for `J` joints (`I` = the preset's inputs per joint x `J` inputs, `J`
+/// outputs), in the feature layout of its preset (all joints of one kind, then the next):
 ///
 /// - `paper`: inputs `tau_model`, `tau_meas`, `q` -> the torque one tick later. The
 ///   network was trained on (inputs at step k, torque at k+1), so each tick pairs the
@@ -135,21 +137,23 @@ impl<T: TorqueNetwork<I, O> + ?Sized, const I: usize, const O: usize> TorqueNetw
 ///   Positions are the references (`q_ref`), which the joint tracks to encoder level.
 /// - `feedforward`: inputs `tau_model`, `q`, `qd` -> residual; the prediction is
 ///   `tau_model + residual` on this tick's references.
+/// - `drive`: inputs [`features::drive_inputs`] of this tick's references -> residual,
+///   added to `tau_model` like `feedforward`, plus the preset's linear stage
+///   ([`features::linear_correction_nm`] of the same inputs, [`Self::with_linear_stage`]).
 pub struct LstmPredictor<N: TorqueNetwork<I, J>, const J: usize, const I: usize> {
     network: N,
     state: N::State,
     preset: FeaturePreset,
     previous: Option<([f32; J], [f32; J])>,
+    rest: [RestDirection; J],
+    linear: [[f32; FRICTION_FEATURES]; J],
 }
 
 impl<N: TorqueNetwork<I, J>, const J: usize, const I: usize> LstmPredictor<N, J, I> {
-    const LAYOUT: () = assert!(I == 3 * J, "an LSTM stage of J joints takes 3 J inputs");
-
-    /// The stage for a network trained with `preset` (`Custom` has no known layout:
-    /// `None`).
+    /// The stage for a network trained with `preset`; `None` for `Custom` (no known
+    /// layout) or when `I` is not the preset's inputs per joint times `J`.
     pub fn new(network: N, preset: FeaturePreset) -> Option<Self> {
-        let () = Self::LAYOUT;
-        if preset == FeaturePreset::Custom {
+        if preset == FeaturePreset::Custom || !preset.fits(J, I, J) {
             return None;
         }
         let state = network.zero_state();
@@ -158,7 +162,17 @@ impl<N: TorqueNetwork<I, J>, const J: usize, const I: usize> LstmPredictor<N, J,
             state,
             preset,
             previous: None,
+            rest: [RestDirection::new(); J],
+            linear: [[0.0; FRICTION_FEATURES]; J],
         })
+    }
+
+    /// The `drive` preset's linear stage: per joint, coefficients of
+    /// [`features::FRICTION_FEATURE_NAMES`] (the model file's `LINEAR_STAGE`). Other
+    /// presets ignore it.
+    pub fn with_linear_stage(mut self, coefficients: [[f32; FRICTION_FEATURES]; J]) -> Self {
+        self.linear = coefficients;
+        self
     }
 
     /// The network.
@@ -174,7 +188,24 @@ impl<N: TorqueNetwork<I, J>, const J: usize, const I: usize> TorquePredictor<J>
         let q_ref = input.joints.map(|s| s.q_ref_rad);
         let tau_meas = input.joints.map(|s| s.tau_meas_nm);
         let mut x = [0.0f32; I];
-        if self.preset == FeaturePreset::Feedforward {
+        let mut linear_nm = [0.0f32; J];
+        if self.preset == FeaturePreset::Drive {
+            for (j, (s, rest)) in input.joints.iter().zip(self.rest.iter_mut()).enumerate() {
+                let f = features::drive_inputs(
+                    s.q_ref_rad,
+                    s.qd_ref_rad_s,
+                    s.qdd_ref_rad_s2,
+                    input.model_nm[j],
+                    rest.update(s.qd_ref_rad_s),
+                );
+                for (kind, v) in f.iter().enumerate().take(DRIVE_INPUTS_PER_JOINT) {
+                    if let Some(slot) = x.get_mut(kind * J + j) {
+                        *slot = *v;
+                    }
+                }
+                linear_nm[j] = features::linear_correction_nm(&self.linear[j], &f);
+            }
+        } else if self.preset == FeaturePreset::Feedforward {
             let qd_ref = input.joints.map(|s| s.qd_ref_rad_s);
             let features = input.model_nm.iter().chain(&q_ref).chain(&qd_ref);
             for (v, f) in x.iter_mut().zip(features) {
@@ -191,7 +222,7 @@ impl<N: TorqueNetwork<I, J>, const J: usize, const I: usize> TorquePredictor<J>
         let y = self.network.step(&mut self.state, &x);
         let mut out = [0.0f32; J];
         for (j, o) in out.iter_mut().enumerate() {
-            *o = self.preset.torque_nm(y[j], input.model_nm[j]);
+            *o = self.preset.torque_nm(y[j], input.model_nm[j]) + linear_nm[j];
         }
         out
     }
@@ -199,6 +230,7 @@ impl<N: TorqueNetwork<I, J>, const J: usize, const I: usize> TorquePredictor<J>
     fn reset(&mut self) {
         self.state = self.network.zero_state();
         self.previous = None;
+        self.rest = [RestDirection::new(); J];
     }
 }
 
@@ -271,6 +303,47 @@ mod tests {
         let mut st = net1::State::new();
         let y = p.predict_nm(&input1(0.6, 1.0, 2.7, 2.0));
         assert_eq!(y, net1::NETWORK.step(&mut st, &[2.0, 2.7, 0.6]));
+    }
+
+    /// A network that returns its `pick`-th input (the drive stage's layout check).
+    struct Pick(usize);
+
+    impl TorqueNetwork<6, 1> for Pick {
+        type State = ();
+        fn zero_state(&self) {}
+        fn step(&self, _: &mut (), x: &[f32; 6]) -> [f32; 1] {
+            [x[self.0]]
+        }
+    }
+
+    #[test]
+    fn drive_stage_feeds_the_drive_features_and_adds_the_residual() {
+        // Moving, then at rest after moving backwards: the rest direction is -1.
+        let ticks = [(0.4f32, -0.3f32, 2.0f32, 5.0f32), (0.2, 0.0, 0.0, 4.0)];
+        let (s, c) = math::sin_cos(0.2);
+        let want = [s, c, 0.0, 0.0, 4.0, -1.0];
+        for (pick, w) in want.iter().enumerate() {
+            let mut p = LstmPredictor::<_, 1, 6>::new(Pick(pick), FeaturePreset::Drive).unwrap();
+            let mut y = [0.0];
+            for &(q, qd, qdd, m) in &ticks {
+                let mut input = input1(q, qd, 9.0, m);
+                input.joints[0].qdd_ref_rad_s2 = qdd;
+                y = p.predict_nm(&input);
+            }
+            assert_eq!(y, [4.0 + w], "input {pick}");
+        }
+        // The linear stage adds its correction of the same inputs.
+        let mut w = [[0.0; FRICTION_FEATURES]; 1];
+        (w[0][0], w[0][4]) = (0.25, 3.0);
+        let mut p = LstmPredictor::<_, 1, 6>::new(Pick(5), FeaturePreset::Drive)
+            .unwrap()
+            .with_linear_stage(w);
+        let y = p.predict_nm(&input1(0.2, 0.5, 9.0, 4.0));
+        let tanh = math::tanh(0.5 * 5.0);
+        assert_eq!(y, [4.0 + 0.0 + (0.25 + 3.0 * tanh)]);
+        // A network of another width does not fit the drive layout.
+        let net = &net1::NETWORK;
+        assert!(LstmPredictor::<_, 1, 3>::new(net, FeaturePreset::Drive).is_none());
     }
 
     #[test]

@@ -36,9 +36,9 @@
 //! the paper's 9 -> 64 -> LSTM 64 -> 3 and the per-joint 3 -> 16 -> LSTM 16 -> 1,
 //! seeded random weights).
 
-/// Layout and numerics version of generated model files this firmware reads (3: int16
-/// Q4.11 cell state).
-pub const SCHEMA_VERSION: u32 = 3;
+/// Layout and numerics version of generated model files this firmware reads (4: the
+/// extended friction basis in the dynamics model, the `drive` preset).
+pub const SCHEMA_VERSION: u32 = 4;
 
 /// Index in a compiled-in dynamics model of each compensated joint: the robot joint
 /// indices when the dynamics cover the whole arm, else (the other joints locked away at
@@ -75,8 +75,10 @@ pub enum FeaturePreset {
     /// Per joint: model torque, measured torque, position (3 per joint) -> the next-step
     /// torque.
     Paper,
-    /// Per joint: model torque, position, velocity (3 per joint).
+    /// Per joint: model torque, position, velocity (3 per joint) -> residual.
     Feedforward,
+    /// Per joint: `crate::features::DRIVE_COLUMNS` (6 per joint) -> residual.
+    Drive,
     /// Other columns (no layout check beyond the sizes).
     Custom,
 }
@@ -86,15 +88,17 @@ impl FeaturePreset {
     pub const fn inputs_per_joint(self) -> usize {
         match self {
             FeaturePreset::Paper | FeaturePreset::Feedforward => 3,
+            FeaturePreset::Drive => crate::features::DRIVE_INPUTS_PER_JOINT,
             FeaturePreset::Custom => 0,
         }
     }
 
-    /// The joint torque an output stands for, N*m: `Feedforward` adds the model torque
-    /// (the network predicts the residual); `Paper` and `Custom` outputs are torques.
+    /// The joint torque an output stands for, N*m: `Feedforward` and `Drive` add the
+    /// model torque (the network predicts the residual); `Paper` and `Custom` outputs are
+    /// torques.
     pub fn torque_nm(self, output: f32, model_nm: f32) -> f32 {
         match self {
-            FeaturePreset::Feedforward => model_nm + output,
+            FeaturePreset::Feedforward | FeaturePreset::Drive => model_nm + output,
             FeaturePreset::Paper | FeaturePreset::Custom => output,
         }
     }
@@ -109,7 +113,8 @@ impl FeaturePreset {
 }
 
 /// Checks a generated model module at compile time: schema version, feature layout,
-/// and that its network's `step` takes `[f32; INPUTS]` and returns `[f32; OUTPUTS]`.
+/// that its network's `step` takes `[f32; INPUTS]` and returns `[f32; OUTPUTS]`, and a
+/// linear stage row per output.
 macro_rules! check_model {
     ($m:ident) => {
         const _: () = assert!(
@@ -122,6 +127,7 @@ macro_rules! check_model {
         );
         const _: fn(&$m::Network, &mut $m::State, &[f32; $m::INPUTS]) -> [f32; $m::OUTPUTS] =
             $m::Network::step;
+        const _: &[[f32; crate::features::FRICTION_FEATURES]; $m::OUTPUTS] = &$m::LINEAR_STAGE;
     };
 }
 

@@ -141,6 +141,10 @@ pub fn build_firmware_model<const N: usize>(
         joints[r].coulomb_nm = term(JointParameter::Coulomb)?;
         joints[r].offset_nm = term(JointParameter::Offset)?;
         joints[r].rotor_inertia_kg_m2 = term(JointParameter::RotorInertia)?;
+        for (k, f) in joints[r].stribeck_nm.iter_mut().enumerate() {
+            *f = term(JointParameter::Stribeck(k))?;
+        }
+        joints[r].quadratic_nm_s2_rad2 = term(JointParameter::Quadratic)?;
     }
     let g = robot.gravity;
     Ok(RigidBodyModel {

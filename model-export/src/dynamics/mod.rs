@@ -294,12 +294,8 @@ fn regressor_into(
     let nk = layout_kinds.len();
     for r in 0..st.n_modelled {
         for (s, kind) in layout_kinds.iter().enumerate() {
-            y[(row0 + r, base + r * nk + s)] = match kind {
-                JointParameter::Viscous => qd[r],
-                JointParameter::Coulomb => robot.terms.coulomb_sign(qd[r]),
-                JointParameter::Offset => 1.0,
-                JointParameter::RotorInertia => qdd[r],
-            };
+            y[(row0 + r, base + r * nk + s)] =
+                kind.column(qd[r], qdd[r], robot.terms.coulomb_sign(qd[r]));
         }
     }
 }
@@ -384,15 +380,20 @@ fn joint_term(robot: &Robot, theta: &DVector<f64>, m: usize, kind: JointParamete
         .unwrap_or(0.0)
 }
 
-/// Friction torques `fv*qd + fc*sgn(qd) + fo` of the modelled joints (the terms present
-/// in [`Robot::terms`]).
+/// Friction torques of the modelled joints at speeds `qd` [rad/s]: every per-joint term
+/// in [`Robot::terms`] except the rotor inertia.
 pub fn friction_torques(robot: &Robot, theta: &DVector<f64>, qd: &[f64]) -> DVector<f64> {
+    let kinds = robot.terms.joint_parameter_kinds();
     DVector::from_iterator(
         qd.len(),
         qd.iter().enumerate().map(|(m, &v)| {
-            joint_term(robot, theta, m, JointParameter::Viscous) * v
-                + joint_term(robot, theta, m, JointParameter::Coulomb) * robot.terms.coulomb_sign(v)
-                + joint_term(robot, theta, m, JointParameter::Offset)
+            kinds
+                .iter()
+                .filter(|&&k| k != JointParameter::RotorInertia)
+                .map(|&k| {
+                    joint_term(robot, theta, m, k) * k.column(v, 0.0, robot.terms.coulomb_sign(v))
+                })
+                .sum::<f64>()
         }),
     )
 }

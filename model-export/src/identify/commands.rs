@@ -13,6 +13,7 @@ use crate::model_file::{
 use crate::robot::{JointMode, Robot};
 use anyhow::{Context, bail};
 use clap::{Args, ValueEnum};
+use firmware::features;
 use nalgebra::{DMatrix, DVector};
 use std::path::{Path, PathBuf};
 
@@ -31,6 +32,21 @@ pub struct JointArgs {
     /// Smooth the Coulomb sign as tanh(qd / EPS) [rad/s] instead of a hard sign.
     #[arg(long, value_name = "EPS")]
     pub coulomb_smoothing_rad_s: Option<f64>,
+    /// Friction model: `paper` (viscous + Coulomb, as the robot file's terms say) or
+    /// `extended` (adds per joint a torque offset, velocity-weakening tanh(qd/v) terms at
+    /// 0.05, 0.2 and 1 rad/s and quadratic drag qd|qd|; all linear in their coefficients
+    /// and evaluated by the firmware).
+    #[arg(long, value_enum, default_value_t = FrictionModel::Paper)]
+    pub friction_model: FrictionModel,
+}
+
+/// Friction basis of the identified model.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum FrictionModel {
+    /// The paper's viscous + Coulomb friction (plus what the robot file selects).
+    Paper,
+    /// The paper's terms plus offset, velocity-weakening and quadratic terms.
+    Extended,
 }
 
 /// Row weighting choice.
@@ -204,6 +220,7 @@ pub fn load_robot(path: &Path, j: &JointArgs) -> anyhow::Result<Robot> {
         robot.lock_joint(i - 1, q);
     }
     robot.terms.friction_offset |= j.friction_offset;
+    robot.terms.extended_friction |= j.friction_model == FrictionModel::Extended;
     if let Some(eps) = j.coulomb_smoothing_rad_s {
         robot.terms.coulomb_smoothing_rad_s = Some(eps);
     }
@@ -451,6 +468,7 @@ pub fn identify(a: &IdentifyArgs) -> anyhow::Result<()> {
             friction_offset: model.robot.terms.friction_offset,
             coulomb_smoothing_rad_s: model.robot.terms.coulomb_smoothing_rad_s,
             rotor_inertia: model.robot.terms.rotor_inertia,
+            extended_friction: model.robot.terms.extended_friction,
         },
         base_seed: BASE_SEED,
         drive_gains_nm_per_a,
@@ -530,6 +548,7 @@ pub fn load_identified(robot_path: &Path, mp: &Path) -> anyhow::Result<(Robot, D
     robot.terms.friction_offset = t.friction_offset;
     robot.terms.coulomb_smoothing_rad_s = t.coulomb_smoothing_rad_s;
     robot.terms.rotor_inertia = t.rotor_inertia;
+    robot.terms.extended_friction = t.extended_friction;
     if file.base_seed != BASE_SEED {
         bail!(
             "{}, field base_seed: {} (this build computes base parameters with seed {BASE_SEED})",
@@ -671,12 +690,24 @@ fn compensation_dataset_csv(
         );
     };
     let mut out = String::from("time_s");
-    for kind in ["q", "qd", "tau_meas", "tau_model"] {
+    for kind in [
+        "q",
+        "qd",
+        "tau_meas",
+        "tau_model",
+        "qdd",
+        "sin_q",
+        "cos_q",
+        "rest_dir",
+    ] {
         for &j in joints {
             out.push_str(&format!(",{kind}_j{}", j + 1));
         }
     }
     out.push('\n');
+    // The drive's own feature functions, on the values as the dataset stores them.
+    let stored = |x: f64| format!("{x:.6}").parse::<f32>().unwrap_or(f32::NAN);
+    let mut rest = vec![features::RestDirection::new(); joints.len()];
     for k in 0..s.len() {
         out.push_str(&format!("{:.6}", s.time_s[k]));
         for series in [&s.q_rad, &s.qd_rad_s, tau] {
@@ -686,6 +717,22 @@ fn compensation_dataset_csv(
         }
         for p in pred {
             out.push_str(&format!(",{:.6}", p[k]));
+        }
+        for &j in joints {
+            out.push_str(&format!(",{:.6}", s.qdd_rad_s2[j][k]));
+        }
+        let derived: Vec<[f32; features::DRIVE_INPUTS_PER_JOINT]> = joints
+            .iter()
+            .zip(rest.iter_mut())
+            .map(|(&j, r)| {
+                let qd = stored(s.qd_rad_s[j][k]);
+                features::drive_inputs(stored(s.q_rad[j][k]), qd, 0.0, 0.0, r.update(qd))
+            })
+            .collect();
+        for col in [0, 1, 5] {
+            for x in &derived {
+                out.push_str(&format!(",{}", x[col]));
+            }
         }
         out.push('\n');
     }

@@ -6,43 +6,20 @@
 //! Columns read per joint N: `tau_meas_jN` (fit only), `tau_model_jN` [N·m], `q_jN`
 //! [rad], `qd_jN` [rad/s]; `qdd_jN` [rad/s²] when present, else central differences of
 //! `qd_jN` over `time_s` [s]; `rest_dir_jN` (-1/0/+1) when present, else computed here
-//! (the direction of the last motion with |qd| > [`REST_BAND_RAD_S`], held while at rest,
-//! 0 while moving).
+//! (the direction of the last motion with |qd| > `firmware::features::REST_BAND_RAD_S`,
+//! held while at rest, 0 while moving). The features are the drive's own
+//! (`firmware::features::friction_features`), which the `drive` preset's linear stage
+//! evaluates too.
 use super::data::Table;
 use anyhow::{Context, Result, bail};
+use firmware::features;
 use nalgebra::{DMatrix, DVector};
 
 /// Number of features per joint.
-pub const N_FEATURES: usize = 16;
-
-/// Velocity scales [rad/s] of the `tanh(qd / v0)` Coulomb/Stribeck features.
-pub const TANH_SCALES_RAD_S: [f64; 4] = [0.01, 0.05, 0.2, 1.0];
-
-/// Velocity scale [rad/s] of the load-dependent friction feature `|tau_model|·tanh(qd/v)`.
-pub const LOAD_FRICTION_SCALE_RAD_S: f64 = 0.05;
-
-/// Speed [rad/s] at or below which a joint counts as at rest (computed `rest_dir`).
-pub const REST_BAND_RAD_S: f32 = 0.005;
+pub const N_FEATURES: usize = features::FRICTION_FEATURES;
 
 /// Feature names, in coefficient order (units of each coefficient: N·m per feature unit).
-pub const FEATURE_NAMES: [&str; N_FEATURES] = [
-    "1",
-    "tau_model",
-    "tanh(qd/0.01)",
-    "tanh(qd/0.05)",
-    "tanh(qd/0.2)",
-    "tanh(qd/1)",
-    "qd",
-    "qd*|qd|",
-    "sqrt(|qd|)*sign(qd)",
-    "qdd",
-    "sin(q)",
-    "cos(q)",
-    "sin(2q)",
-    "cos(2q)",
-    "rest_dir",
-    "|tau_model|*tanh(qd/0.05)",
-];
+pub const FEATURE_NAMES: [&str; N_FEATURES] = features::FRICTION_FEATURE_NAMES;
 
 /// Singular values below this fraction of the largest (column-scaled design) count as 0.
 const RCOND: f64 = 1e-10;
@@ -62,22 +39,13 @@ pub struct LinearBaseline {
     pub samples: usize,
 }
 
-/// The direction of the last motion while at rest, from velocities [rad/s] (-1/0/+1).
+/// The direction of the last motion while at rest, from velocities [rad/s] (-1/0/+1):
+/// `firmware::features::RestDirection` over the sequence.
 pub fn rest_direction(qd_rad_s: &[f32]) -> Vec<f64> {
-    let mut last = 0.0;
+    let mut rest = features::RestDirection::new();
     qd_rad_s
         .iter()
-        .map(|&v| {
-            if v > REST_BAND_RAD_S {
-                last = 1.0;
-                0.0
-            } else if v < -REST_BAND_RAD_S {
-                last = -1.0;
-                0.0
-            } else {
-                last
-            }
-        })
+        .map(|&v| f64::from(rest.update(v)))
         .collect()
 }
 
@@ -131,28 +99,12 @@ pub fn features(table: &Table, joint: usize) -> Result<Vec<[f64; N_FEATURES]>> {
     } else {
         rest_direction(qd)
     };
+    // The drive's own feature function (f32), as the `drive` preset's linear stage.
     let rows: Vec<[f64; N_FEATURES]> = (0..table.len())
         .map(|k| {
-            let (q, v, m) = (q[k] as f64, qd[k] as f64, tau_model[k] as f64);
-            let th = TANH_SCALES_RAD_S.map(|s| (v / s).tanh());
-            [
-                1.0,
-                m,
-                th[0],
-                th[1],
-                th[2],
-                th[3],
-                v,
-                v * v.abs(),
-                v.abs().sqrt() * v.signum(),
-                qdd[k],
-                q.sin(),
-                q.cos(),
-                (2.0 * q).sin(),
-                (2.0 * q).cos(),
-                rest[k],
-                m.abs() * (v / LOAD_FRICTION_SCALE_RAD_S).tanh(),
-            ]
+            let x =
+                features::drive_inputs(q[k], qd[k], qdd[k] as f32, tau_model[k], rest[k] as f32);
+            features::friction_features(&x).map(f64::from)
         })
         .collect();
     for (k, r) in rows.iter().enumerate() {
@@ -218,7 +170,7 @@ pub fn fit(tables: &[Table], joints: &[usize]) -> Result<LinearBaseline> {
 
 /// Least squares `x w ≈ y` through the SVD of the column-scaled design (minimum-norm
 /// solution when columns are dependent, e.g. a constant column beside the intercept).
-fn solve(x: &[[f64; N_FEATURES]], y: &[f64]) -> Result<Vec<f64>> {
+pub(crate) fn solve(x: &[[f64; N_FEATURES]], y: &[f64]) -> Result<Vec<f64>> {
     let n = x.len();
     let scale: Vec<f64> = (0..N_FEATURES)
         .map(|c| {

@@ -7,7 +7,14 @@
 //! (N·m), `tau_model_j{j}` the identified model's torque (N·m).
 //! - `paper`: inputs `tau_model_j*`, `tau_meas_j*`, `q_j*` (all joints of one kind, then
 //!   the next kind) → target `tau_meas_j*` one step ahead; model-only prediction
-//!   `tau_model_j*` at that step; persistence baseline `tau_meas_j*` now. (Predicting the
+//!   `tau_model_j*` at that step; persistence baseline `tau_meas_j*` now. Two open-loop
+//!   variants keep the same inputs: the increment over the measured torque now
+//!   ([`FeatureSpec::paper_increment`]) and the residual over the model's torque at t+1
+//!   ([`FeatureSpec::paper_relative`]: a network that knows nothing returns the model).
+//!   Both lean on the measured torque through a residual path; fed forward, the applied
+//!   torque then comes back as the next feedforward, a loop that the closed-loop
+//!   simulation measured to destabilise the wrist (model-export/README.md), so the
+//!   exporter refuses them. (Predicting the
 //!   increment over the measured torque instead, a residual connection, beat persistence
 //!   on the default wrist in open loop but, fed forward, closes a unit-gain loop on the
 //!   applied torque that destabilised the closed-loop simulation: measured, see
@@ -15,6 +22,11 @@
 //!   keeps that form for open-loop prediction; the exporter refuses it.)
 //! - `feedforward`: inputs `tau_model_j*`, `q_j*`, `qd_j*` → target the residual
 //!   `tau_meas_j* - tau_model_j*` at the same step; model-only prediction 0.
+//! - `drive`: what the drive knows before the tick, per joint (`firmware::features`):
+//!   `sin_q_j*`, `cos_q_j*`, `qd_j*`, `qdd_j*`, `tau_model_j*` (the first stage),
+//!   `rest_dir_j*` → target the residual `tau_meas_j* - tau_model_j*` at the same step;
+//!   model-only prediction 0. Angles enter as sine and cosine, so poses outside the
+//!   training range stay in distribution.
 //! - `custom`: `--inputs a,b,c --targets y1,y2-z2 --shift k`: a target is a column or a
 //!   difference `col-col`, taken `k` steps ahead; model-only prediction 0.
 use anyhow::{Context, Result, bail};
@@ -138,10 +150,11 @@ impl TargetSpec {
     }
 }
 
-/// Whether an output name (as [`TargetSpec::name`] writes it) is an increment over an
-/// input (`col@+k-minus@0`).
-pub fn is_increment_name(name: &str) -> bool {
-    name.ends_with("@0")
+/// Whether an output name is a future torque expressed as a difference (`col@+k-minus@0`
+/// or `col-minus@+k`): the open-loop `paper` variants, which lean on the measured torque
+/// through a residual path and so close a loop on the applied torque when fed forward.
+pub fn is_shifted_difference_name(name: &str) -> bool {
+    name.contains("@+") && name.contains('-')
 }
 
 /// Which columns go in and what comes out.
@@ -192,10 +205,43 @@ impl FeatureSpec {
         spec
     }
 
+    /// The `paper` preset's open-loop variant relative to the model: the same inputs, the
+    /// next-step torque predicted as the model's torque at that step plus the network's
+    /// residual (module docs; the exporter refuses it).
+    pub fn paper_relative(joints: &[usize]) -> Self {
+        let mut spec = Self::paper(joints);
+        for t in &mut spec.targets {
+            t.minus.clone_from(&t.model_only);
+        }
+        spec
+    }
+
     /// The `feedforward` preset for `joints` (see module docs).
     pub fn feedforward(joints: &[usize]) -> Self {
+        Self::residual("feedforward", &["tau_model", "q", "qd"], joints)
+    }
+
+    /// The `drive` preset for `joints` (see module docs).
+    pub fn drive(joints: &[usize]) -> Self {
+        Self::residual("drive", &firmware::features::DRIVE_COLUMNS, joints)
+    }
+
+    /// The spec of a named preset (`paper`, `feedforward`, `drive`) for `joints`; `None`
+    /// for `custom` and unknown names.
+    pub fn for_preset(preset: &str, joints: &[usize]) -> Option<Self> {
+        match preset {
+            "paper" => Some(Self::paper(joints)),
+            "feedforward" => Some(Self::feedforward(joints)),
+            "drive" => Some(Self::drive(joints)),
+            _ => None,
+        }
+    }
+
+    /// A preset whose inputs are `kinds` (all joints of one kind, then the next) and whose
+    /// targets are the residuals over the model torque at the same step.
+    fn residual(preset: &str, kinds: &[&str], joints: &[usize]) -> Self {
         let mut inputs = Vec::new();
-        for kind in ["tau_model", "q", "qd"] {
+        for kind in kinds {
             inputs.extend(joints.iter().map(|j| format!("{kind}_j{j}")));
         }
         let targets = joints
@@ -209,7 +255,7 @@ impl FeatureSpec {
             })
             .collect();
         FeatureSpec {
-            preset: "feedforward".into(),
+            preset: preset.into(),
             inputs,
             targets,
         }
@@ -299,9 +345,9 @@ impl FeatureSpec {
                 y.push(a[k] - base);
                 // The model's prediction of the target (0 for a residual without one).
                 mo_row.push(mo.map_or(0.0, |m| m[k] - base));
-                // Persistence: the target's column now, in the target's terms.
-                let persistent = spec.shift > 0
-                    && (b.is_none() || spec.minus_now && spec.minus.as_ref() == Some(&spec.column));
+                // Persistence: the target's column now, in the target's terms (defined
+                // for a shifted target that the model predicts).
+                let persistent = spec.shift > 0 && spec.model_only.is_some();
                 pers.push(persistent.then(|| a[row] - base));
                 offset.push(base);
             }

@@ -95,6 +95,10 @@ pub fn parse_model(bytes: &[u8]) -> Result<LstmModel> {
         b_out: shaped("output.bias", &[o])?,
         output_mean: shaped("norm.output_mean", &[o])?,
         output_std: shaped("norm.output_std", &[o])?,
+        linear: match st.tensor(LINEAR) {
+            Ok(_) => shaped(LINEAR, &[o, firmware::features::FRICTION_FEATURES])?,
+            Err(_) => Vec::new(),
+        },
     };
     let act = meta
         .metadata()
@@ -128,6 +132,9 @@ fn names(
     }
 }
 
+/// Name of the `drive` preset's linear stage tensor.
+const LINEAR: &str = "linear.weight";
+
 /// Serialises a model (F32, PyTorch names) to safetensors bytes.
 pub fn model_bytes(m: &LstmModel) -> Result<Vec<u8>> {
     m.validate()?;
@@ -150,13 +157,16 @@ pub fn model_bytes(m: &LstmModel) -> Result<Vec<u8>> {
         ("norm.input_std", vec![i]),
         ("norm.output_mean", vec![o]),
         ("norm.output_std", vec![o]),
+        (LINEAR, vec![o, firmware::features::FRICTION_FEATURES]),
     ]
     .into_iter()
     .collect();
+    let linear = (!m.linear.is_empty()).then_some((LINEAR, &m.linear));
     let bufs: Vec<(&str, Vec<u8>)> = m
         .tensors()
-        .iter()
-        .map(|(n, v)| (*n, v.iter().flat_map(|x| x.to_le_bytes()).collect()))
+        .into_iter()
+        .chain(linear)
+        .map(|(n, v)| (n, v.iter().flat_map(|x| x.to_le_bytes()).collect()))
         .collect();
     let views: Vec<(&str, TensorView)> = bufs
         .iter()

@@ -3,6 +3,7 @@
 use super::fused::FusedLstm;
 use anyhow::{Result, bail};
 use candle_core::{DType, Device, Tensor, Var};
+use firmware::features::{self, DRIVE_INPUTS_PER_JOINT, FRICTION_FEATURES};
 use firmware::lstm::{LstmDims, LstmView};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -45,6 +46,10 @@ pub struct LstmModel {
     pub output_mean: Vec<f32>,
     /// Standard deviation of each target.
     pub output_std: Vec<f32>,
+    /// The `drive` preset's linear stage `linear.weight` `[O, 16]`: per output, the
+    /// coefficients [N*m per feature unit] of `firmware::features::FRICTION_FEATURE_NAMES`
+    /// of that joint's inputs, added to the network's output; empty without one.
+    pub linear: Vec<f32>,
 }
 
 impl LstmModel {
@@ -80,6 +85,7 @@ impl LstmModel {
             b_out: uniform(o, h),
             output_mean: vec![0.0; o],
             output_std: vec![1.0; o],
+            linear: Vec::new(),
         }
     }
 
@@ -100,6 +106,25 @@ impl LstmModel {
         ] {
             if let Some(k) = v.iter().position(|&x| x <= 0.0) {
                 bail!("tensor `{name}`: element {k} is {} (must be > 0)", v[k]);
+            }
+        }
+        if !self.linear.is_empty() {
+            let o = self.dims.output;
+            if self.preset != "drive"
+                || self.dims.input != DRIVE_INPUTS_PER_JOINT * o
+                || self.linear.len() != FRICTION_FEATURES * o
+            {
+                bail!(
+                    "tensor `linear.weight`: {} values; a linear stage belongs to a `drive` network \
+                     of {DRIVE_INPUTS_PER_JOINT} inputs per output and has [{o}, {FRICTION_FEATURES}] \
+                     (this one: preset `{}`, {:?})",
+                    self.linear.len(),
+                    self.preset,
+                    self.dims
+                );
+            }
+            if let Some(k) = self.linear.iter().position(|x| !x.is_finite()) {
+                bail!("tensor `linear.weight`: element {k} is not finite");
             }
         }
         if self.input_names.len() != self.dims.input || self.output_names.len() != self.dims.output
@@ -207,6 +232,17 @@ impl Streamer<'_> {
             .step(&mut h, &mut c, &mut e, &mut hs, input, &mut out);
         (self.h, self.c, self.embed, self.h_scratch) = (h, c, e, hs);
         r.map_err(|e| anyhow::anyhow!("firmware LSTM step: {e}"))?;
+        let o = out.len();
+        for (k, (y, w)) in out
+            .iter_mut()
+            .zip(self.model.linear.chunks_exact(FRICTION_FEATURES))
+            .enumerate()
+        {
+            // Output k's joint inputs, kind-major as the firmware's predictor lays them out.
+            let x: [f32; DRIVE_INPUTS_PER_JOINT] = std::array::from_fn(|kind| input[kind * o + k]);
+            let w: &[f32; FRICTION_FEATURES] = w.try_into()?;
+            *y += features::linear_correction_nm(w, &x);
+        }
         Ok(out)
     }
 

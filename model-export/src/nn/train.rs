@@ -307,6 +307,90 @@ pub fn train(
     Ok((m, h))
 }
 
+/// Output `k`'s joint inputs of a `drive` row (kind-major, as the firmware lays them out).
+fn drive_joint_inputs(
+    row: &[f32],
+    outputs: usize,
+    k: usize,
+) -> [f32; firmware::features::DRIVE_INPUTS_PER_JOINT] {
+    std::array::from_fn(|kind| row[kind * outputs + k])
+}
+
+/// The `drive` preset's linear stage: per output, least squares (f64, column-scaled
+/// SVD) of the target on `firmware::features::friction_features` of that joint's inputs
+/// over every training step; `[O, 16]` row-major, as `LstmModel::linear` holds it.
+pub fn fit_linear_stage(train: &[Sequence], outputs: usize) -> Result<Vec<f32>> {
+    let mut w = Vec::with_capacity(outputs * firmware::features::FRICTION_FEATURES);
+    for k in 0..outputs {
+        let mut x = Vec::new();
+        let mut y = Vec::new();
+        for s in train {
+            for (row, t) in s.inputs.iter().zip(&s.targets) {
+                let f = firmware::features::friction_features(&drive_joint_inputs(row, outputs, k));
+                x.push(f.map(f64::from));
+                y.push(f64::from(t[k]));
+            }
+        }
+        w.extend(super::baseline::solve(&x, &y)?.iter().map(|&c| c as f32));
+    }
+    Ok(w)
+}
+
+/// Subtracts the linear stage `w` (from [`fit_linear_stage`]) from every target, so the
+/// network learns what the linear stage leaves.
+pub fn subtract_linear_stage(w: &[f32], seqs: &mut [Sequence]) -> Result<()> {
+    for s in seqs {
+        for (row, t) in s.inputs.iter().zip(s.targets.iter_mut()) {
+            let outputs = t.len();
+            for (k, (y, c)) in t
+                .iter_mut()
+                .zip(w.chunks_exact(firmware::features::FRICTION_FEATURES))
+                .enumerate()
+            {
+                let c: &[f32; firmware::features::FRICTION_FEATURES] = c.try_into()?;
+                *y -= firmware::features::linear_correction_nm(
+                    c,
+                    &drive_joint_inputs(row, outputs, k),
+                );
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Do-no-harm shrinkage of a residual network (targets whose model-only prediction is
+/// 0: `feedforward`, `drive`): per output the gain `a` in [0, 1] that minimises the
+/// squared error of `a * prediction` on the validation sequences (streamed as the
+/// firmware runs them), folded into the output de-normalisation, so a network that
+/// does not help on held-out runs fades towards the model alone. Returns the gains
+/// (1 for outputs that are not residuals).
+pub fn shrink_residual_outputs(m: &mut LstmModel, val: &[&Sequence]) -> Result<Vec<f32>> {
+    let o = m.dims.output;
+    let (mut yp, mut pp) = (vec![0.0f64; o], vec![0.0f64; o]);
+    let mut residual = vec![true; o];
+    for seq in val {
+        let pred = m.stream(&seq.inputs)?;
+        for (t, p) in pred.iter().enumerate() {
+            for k in 0..o {
+                residual[k] &= seq.model_only[t][k] == 0.0;
+                yp[k] += f64::from(seq.targets[t][k]) * f64::from(p[k]);
+                pp[k] += f64::from(p[k]).powi(2);
+            }
+        }
+    }
+    let gains: Vec<f32> = (0..o)
+        .map(|k| match (residual[k] && !val.is_empty(), pp[k] > 0.0) {
+            (true, true) => (yp[k] / pp[k]).clamp(0.0, 1.0) as f32,
+            _ => 1.0,
+        })
+        .collect();
+    for (k, g) in gains.iter().enumerate() {
+        m.output_mean[k] *= g;
+        m.output_std[k] = (m.output_std[k] * g).max(f32::MIN_POSITIVE);
+    }
+    Ok(gains)
+}
+
 /// CPU seconds (user + system) this process has used, from `/proc/self/stat` (10 ms
 /// ticks), or `None` where that file is missing. Benchmarks on a loaded machine report it
 /// beside the wall clock.

@@ -19,6 +19,7 @@
 //!   parameter vector (layout: [`ParameterLayout`]).
 //!
 //! Errors ([`RobotError`]) name the file, the line (where known) and the field.
+use firmware::dynamics::{STRIBECK_INV_SPEEDS_S_RAD, STRIBECK_TERMS};
 use nalgebra::{Matrix3, Rotation3, Unit, Vector3};
 use std::fmt;
 use std::path::{Path, PathBuf};
@@ -261,6 +262,10 @@ pub struct ModelTerms {
     pub coulomb_smoothing_rad_s: Option<f64>,
     /// Reflected rotor inertia column per modelled joint (`tau = Ia * qdd`).
     pub rotor_inertia: bool,
+    /// The extended friction basis per modelled joint (with the offset): velocity-weakening
+    /// `tanh(qd / v_k)` at `firmware::dynamics::STRIBECK_SPEEDS_RAD_S` and quadratic drag
+    /// `qd*|qd|`.
+    pub extended_friction: bool,
 }
 
 impl Default for ModelTerms {
@@ -272,6 +277,7 @@ impl Default for ModelTerms {
             friction_offset: false,
             coulomb_smoothing_rad_s: None,
             rotor_inertia: false,
+            extended_friction: false,
         }
     }
 }
@@ -285,6 +291,7 @@ impl ModelTerms {
             friction_offset: false,
             coulomb_smoothing_rad_s: None,
             rotor_inertia: false,
+            extended_friction: false,
         }
     }
 
@@ -297,11 +304,15 @@ impl ModelTerms {
         if self.coulomb_friction {
             v.push(JointParameter::Coulomb);
         }
-        if self.friction_offset {
+        if self.friction_offset || self.extended_friction {
             v.push(JointParameter::Offset);
         }
         if self.rotor_inertia {
             v.push(JointParameter::RotorInertia);
+        }
+        if self.extended_friction {
+            v.extend((0..STRIBECK_TERMS).map(JointParameter::Stribeck));
+            v.push(JointParameter::Quadratic);
         }
         v
     }
@@ -334,16 +345,35 @@ pub enum JointParameter {
     Offset,
     /// Reflected rotor inertia [kg*m^2] (name `Ia<i>`).
     RotorInertia,
+    /// Velocity-weakening friction `tanh(qd / v_k)` [N*m] (name `fs<k>_<i>`, k from 1).
+    Stribeck(usize),
+    /// Quadratic drag `qd*|qd|` [N*m*s^2/rad^2] (name `fq<i>`).
+    Quadratic,
 }
 
 impl JointParameter {
-    /// Name prefix.
-    pub fn prefix(self) -> &'static str {
+    /// Name prefix (the 1-based joint number follows).
+    pub fn prefix(self) -> String {
         match self {
-            JointParameter::Viscous => "fv",
-            JointParameter::Coulomb => "fc",
-            JointParameter::Offset => "fo",
-            JointParameter::RotorInertia => "Ia",
+            JointParameter::Viscous => "fv".into(),
+            JointParameter::Coulomb => "fc".into(),
+            JointParameter::Offset => "fo".into(),
+            JointParameter::RotorInertia => "Ia".into(),
+            JointParameter::Stribeck(k) => format!("fs{}_", k + 1),
+            JointParameter::Quadratic => "fq".into(),
+        }
+    }
+
+    /// The regressor column of this term for one joint at `qd` [rad/s], `qdd`
+    /// [rad/s^2], with `coulomb_sign` the model's sign function of `qd`.
+    pub fn column(self, qd: f64, qdd: f64, coulomb_sign: f64) -> f64 {
+        match self {
+            JointParameter::Viscous => qd,
+            JointParameter::Coulomb => coulomb_sign,
+            JointParameter::Offset => 1.0,
+            JointParameter::RotorInertia => qdd,
+            JointParameter::Stribeck(k) => (qd * f64::from(STRIBECK_INV_SPEEDS_S_RAD[k])).tanh(),
+            JointParameter::Quadratic => qd * qd.abs(),
         }
     }
 }
@@ -537,6 +567,7 @@ impl Robot {
                     JointParameter::Coulomb => j.friction.coulomb_nm,
                     JointParameter::Offset => j.friction.offset_nm,
                     JointParameter::RotorInertia => j.drive.rotor_inertia_kg_m2.unwrap_or(0.0),
+                    JointParameter::Stribeck(_) | JointParameter::Quadratic => 0.0,
                 };
                 if let Some(idx) = layout.joint_index(m, kind) {
                     theta[idx] = v;

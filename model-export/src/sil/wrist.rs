@@ -28,6 +28,7 @@ use firmware::control::{
     LstmPredictor, NoPredictor, SensorSample, StateLimits, TorqueNetwork, TorquePredictor,
 };
 use firmware::dynamics::RigidBodyModel;
+use firmware::features::{DRIVE_INPUTS_PER_JOINT, FRICTION_FEATURES};
 use firmware::model::FeaturePreset;
 use firmware::quant::I16Weights;
 use nalgebra::Matrix3;
@@ -171,17 +172,17 @@ impl WristLstm {
         };
         let model = crate::nn::io::read_model(&file)?;
         let numbers = WRIST_JOINTS.map(|j| j + 1);
-        let (preset, spec) = match model.preset.as_str() {
-            "paper" => (FeaturePreset::Paper, FeatureSpec::paper(&numbers)),
-            "feedforward" => (
-                FeaturePreset::Feedforward,
-                FeatureSpec::feedforward(&numbers),
-            ),
+        let preset = match model.preset.as_str() {
+            "paper" => FeaturePreset::Paper,
+            "feedforward" => FeaturePreset::Feedforward,
+            "drive" => FeaturePreset::Drive,
             other => bail!(
-                "{}: preset `{other}`; the SIL runs `paper` or `feedforward` networks",
+                "{}: preset `{other}`; the SIL runs `paper`, `feedforward` or `drive` networks",
                 file.display()
             ),
         };
+        let spec = FeatureSpec::for_preset(&model.preset, &numbers)
+            .context("every SIL preset has a feature spec")?;
         // Same inputs and outputs (for `paper`: the increment over the measured torque
         // that the firmware's predictor adds back) as the wrist's preset.
         spec.check_model(&model)
@@ -644,6 +645,7 @@ pub fn identified_wrist_model(
             lock: Vec::new(),
             friction_offset: false,
             coulomb_smoothing_rad_s: None,
+            friction_model: crate::identify::commands::FrictionModel::Paper,
         },
     )?;
     ensure!(
@@ -687,11 +689,28 @@ pub fn run_wrist(
             let l = lstm.context("this feedforward needs --lstm")?;
             let net = l.network(mode == WristFeedforward::ModelLstmInt16)?;
             let preset = l.preset;
-            run_wrist_with(setup, |_| {
-                let p = LstmPredictor::<_, J, 9>::new(&net, preset)
-                    .context("LSTM preset without a known layout")?;
-                Ok((m, p))
-            })
+            let layout = "the network does not take its preset's feature layout";
+            if preset == FeaturePreset::Drive {
+                let mut linear = [[0.0; FRICTION_FEATURES]; J];
+                for (row, w) in linear
+                    .iter_mut()
+                    .zip(l.model.linear.chunks_exact(FRICTION_FEATURES))
+                {
+                    row.copy_from_slice(w);
+                }
+                run_wrist_with(setup, |_| {
+                    let p =
+                        LstmPredictor::<_, J, { DRIVE_INPUTS_PER_JOINT * J }>::new(&net, preset)
+                            .context(layout)?
+                            .with_linear_stage(linear);
+                    Ok((m, p))
+                })
+            } else {
+                run_wrist_with(setup, |_| {
+                    let p = LstmPredictor::<_, J, { 3 * J }>::new(&net, preset).context(layout)?;
+                    Ok((m, p))
+                })
+            }
         }
     }
 }
