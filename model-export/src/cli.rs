@@ -3,7 +3,7 @@ use crate::nn::data::{FeatureSpec, Sequence, Table};
 use crate::nn::{eval, io, plot, train};
 use anyhow::{Context, Result, bail};
 use clap::{Args, Parser, Subcommand};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// `model-export`: identify a robot's dynamics, learn what the model misses, and
 /// export both as fixed-size arrays for the joint-drive firmware.
@@ -483,8 +483,74 @@ fn import_cmd(a: ImportArgs) -> Result<()> {
     Ok(())
 }
 
+/// The files a command reads and the files it writes (for
+/// [`crate::model_file::refuse_outputs_that_are_inputs`]).
+fn files(command: &Command) -> (Vec<&Path>, Vec<&Path>) {
+    fn all(v: &[PathBuf]) -> impl Iterator<Item = &Path> {
+        v.iter().map(PathBuf::as_path)
+    }
+    match command {
+        Command::Identify(a) => (
+            std::iter::once(a.robot.as_path())
+                .chain(all(&a.logs))
+                .chain(all(&a.validation))
+                .collect(),
+            vec![&a.output],
+        ),
+        Command::Torque(a) => (
+            [Some(&a.robot), a.model.as_ref(), Some(&a.log)]
+                .into_iter()
+                .flatten()
+                .map(PathBuf::as_path)
+                .collect(),
+            vec![&a.output],
+        ),
+        Command::Train(a) => (
+            all(&a.data).chain(all(&a.validation_data)).collect(),
+            [Some(&a.out), Some(&a.loss_plot), a.report.as_ref()]
+                .into_iter()
+                .flatten()
+                .map(PathBuf::as_path)
+                .collect(),
+        ),
+        Command::Evaluate(a) => (
+            std::iter::once(a.model.as_path())
+                .chain(all(&a.data))
+                .chain(all(&a.baseline_data))
+                .collect(),
+            a.report.iter().map(PathBuf::as_path).collect(),
+        ),
+        Command::Import(a) => (
+            std::iter::once(a.torch.as_path())
+                .chain(a.reference.as_deref())
+                .collect(),
+            vec![&a.out],
+        ),
+        Command::Export(a) => (
+            [
+                &a.model,
+                &a.robot,
+                &a.identified,
+                &a.accuracy_log,
+                &a.budgets,
+            ]
+            .into_iter()
+            .flatten()
+            .map(PathBuf::as_path)
+            .chain(all(&a.gate_data))
+            .collect(),
+            std::iter::once(a.out.as_path())
+                .chain(a.accuracy_json.as_deref())
+                .collect(),
+        ),
+        _ => (Vec::new(), Vec::new()),
+    }
+}
+
 /// Runs one parsed command line.
 pub fn run(cli: Cli) -> anyhow::Result<()> {
+    let (inputs, outputs) = files(&cli.command);
+    crate::model_file::refuse_outputs_that_are_inputs(&inputs, &outputs)?;
     match cli.command {
         Command::Excite(args) => crate::excite::cli::run(&args),
         Command::Primitives { points } => {

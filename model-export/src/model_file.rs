@@ -174,6 +174,35 @@ impl ModelFile {
     }
 }
 
+/// Refuses a command line whose outputs would replace one of its inputs or each other
+/// (`identify --log run.csv -o run.csv` would destroy the log): an output that exists is
+/// compared with every existing input by canonical path. Names both paths.
+pub fn refuse_outputs_that_are_inputs(inputs: &[&Path], outputs: &[&Path]) -> anyhow::Result<()> {
+    let canonical = |p: &Path| std::fs::canonicalize(p).ok();
+    for (k, out) in outputs.iter().enumerate() {
+        let Some(o) = canonical(out) else { continue };
+        for input in inputs {
+            if canonical(input).as_ref() == Some(&o) {
+                anyhow::bail!(
+                    "output {} is the input {}: refusing to replace an input",
+                    out.display(),
+                    input.display()
+                );
+            }
+        }
+        for other in &outputs[..k] {
+            if canonical(other).as_ref() == Some(&o) {
+                anyhow::bail!(
+                    "outputs {} and {} are the same file",
+                    other.display(),
+                    out.display()
+                );
+            }
+        }
+    }
+    Ok(())
+}
+
 /// Writes `bytes` to `path` via a temporary file in the same directory and a rename:
 /// either the whole new content is there, or the old state is untouched.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> anyhow::Result<()> {

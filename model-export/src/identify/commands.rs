@@ -626,6 +626,21 @@ pub fn torque(a: &TorqueArgs) -> anyhow::Result<()> {
     }
     let s = preprocess(&raw, &pre)?;
     let pred = fw.predict(&joints, &s);
+    // Finite inputs can still give non-finite torques (a huge position or velocity):
+    // nothing non-finite is written.
+    for (p, &j) in pred.iter().zip(&joints) {
+        if let Some(k) = p.iter().position(|x| !x.is_finite()) {
+            bail!(
+                "{}: at t = {} s the model torque of joint {} is not finite (state q = {}, qd = {}, qdd = {}); nothing written",
+                a.log.display(),
+                s.time_s[k],
+                j + 1,
+                s.q_rad[j][k],
+                s.qd_rad_s[j][k],
+                s.qdd_rad_s2[j][k]
+            );
+        }
+    }
     let out = if a.dataset {
         compensation_dataset_csv(&a.log, &joints, &s, &pred)?
     } else {

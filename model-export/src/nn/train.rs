@@ -55,6 +55,34 @@ pub struct TrainConfig {
     pub threads: usize,
 }
 
+impl TrainConfig {
+    /// Sizes and counts that training needs to be at least 1, a finite positive learning
+    /// rate and a finite clipping norm (0: off); the error names the option.
+    pub fn check(&self) -> Result<()> {
+        for (name, v) in [
+            ("embed", self.embed),
+            ("hidden", self.hidden),
+            ("window", self.window),
+            ("batch", self.batch),
+            ("epochs", self.epochs),
+        ] {
+            if v == 0 {
+                bail!("--{name} must be at least 1");
+            }
+        }
+        if let Some(lr) = self.lr.filter(|lr| !(lr.is_finite() && *lr > 0.0)) {
+            bail!("--lr must be a finite number above 0 (got {lr})");
+        }
+        if !(self.clip_norm.is_finite() && self.clip_norm >= 0.0) {
+            bail!(
+                "--clip must be a finite number, 0 or above (got {})",
+                self.clip_norm
+            );
+        }
+        Ok(())
+    }
+}
+
 impl Default for TrainConfig {
     fn default() -> Self {
         TrainConfig {
@@ -181,6 +209,7 @@ pub fn new_model(
     if train.is_empty() {
         bail!("the training block is empty");
     }
+    cfg.check()?;
     let dims = LstmDims {
         input: train.inputs[0].len(),
         embed: cfg.embed,
@@ -276,6 +305,7 @@ pub fn train(
     val: &[&Sequence],
     cfg: &TrainConfig,
 ) -> Result<(LstmModel, History)> {
+    cfg.check()?;
     let (lr, trials) = match cfg.lr {
         Some(lr) => (lr, Vec::new()),
         None => {
