@@ -585,15 +585,19 @@ mod tests {
     type Comp = Compensator<3, TestModel, TestLstm>;
 
     fn new() -> Comp {
+        with_config(config()).unwrap()
+    }
+
+    /// The test stages (a model without a forced value, an LSTM without) under `cfg`.
+    fn with_config(cfg: CompensatorConfig) -> Result<Comp, ConfigError> {
         Compensator::new(
-            config(),
+            cfg,
             TestModel::new(None),
             TestLstm {
                 forced: None,
                 resets: 0,
             },
         )
-        .unwrap()
     }
 
     fn state(q: f32) -> JointState {
@@ -858,29 +862,12 @@ mod tests {
         let mut cfg = config();
         cfg.own_joint = 3;
         assert!(matches!(
-            Comp::new(
-                cfg,
-                TestModel::new(None),
-                TestLstm {
-                    forced: None,
-                    resets: 0
-                }
-            ),
+            with_config(cfg),
             Err(ConfigError::OwnJointOutOfRange)
         ));
         let mut cfg = config();
         cfg.drive_gain_nm_per_a = f32::NAN;
-        assert!(matches!(
-            Comp::new(
-                cfg,
-                TestModel::new(None),
-                TestLstm {
-                    forced: None,
-                    resets: 0
-                }
-            ),
-            Err(ConfigError::NonPositive)
-        ));
+        assert!(matches!(with_config(cfg), Err(ConfigError::NonPositive)));
     }
 
     #[test]
@@ -1064,15 +1051,7 @@ mod tests {
             max_rate_error_ppm: 20_000,
         };
         cfg.max_message_age_us = 3000;
-        let mut c = Comp::new(
-            cfg,
-            TestModel::new(None),
-            TestLstm {
-                forced: None,
-                resets: 0,
-            },
-        )
-        .unwrap();
+        let mut c = with_config(cfg).unwrap();
         // Sender clocks: offset by about 1.2e9 us and 1 % fast / slow.
         let sender = |j: u8, k: u32| {
             let t = k as f64 * 1000.0 * if j == 0 { 1.01 } else { 0.99 };
@@ -1114,15 +1093,7 @@ mod tests {
     fn the_tick_watchdog_trips_without_the_timestamp_check() {
         let mut cfg = config();
         cfg.max_message_age_us = u32::MAX / 2;
-        let mut c = Comp::new(
-            cfg,
-            TestModel::new(None),
-            TestLstm {
-                forced: None,
-                resets: 0,
-            },
-        )
-        .unwrap();
+        let mut c = with_config(cfg).unwrap();
         let mut k = settle(&mut c, 0, 7.0, FeedforwardSource::ModelLstm);
         let w = cfg.watchdog_ticks as u32;
         for i in 1..=w + 3 {

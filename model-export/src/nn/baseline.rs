@@ -81,24 +81,19 @@ pub fn features(table: &Table, joint: usize) -> Result<Vec<[f64; N_FEATURES]>> {
     let q = table.column(&name("q"))?;
     let qd = table.column(&name("qd"))?;
     let tau_model = table.column(&name("tau_model"))?;
-    let qdd: Vec<f64> = if has(&name("qdd")) {
-        table
-            .column(&name("qdd"))?
-            .iter()
-            .map(|&v| v as f64)
-            .collect()
-    } else {
-        central_differences(table, qd, &name("qd"))?
+    let stored = |kind: &str| -> Result<Option<Vec<f64>>> {
+        let c = name(kind);
+        Ok(if has(&c) {
+            Some(table.column(&c)?.iter().map(|&v| v as f64).collect())
+        } else {
+            None
+        })
     };
-    let rest: Vec<f64> = if has(&name("rest_dir")) {
-        table
-            .column(&name("rest_dir"))?
-            .iter()
-            .map(|&v| v as f64)
-            .collect()
-    } else {
-        rest_direction(qd)
+    let qdd = match stored("qdd")? {
+        Some(v) => v,
+        None => central_differences(table, qd, &name("qd"))?,
     };
+    let rest = stored("rest_dir")?.unwrap_or_else(|| rest_direction(qd));
     // The drive's own feature function (f32), as the `drive` preset's linear stage.
     let rows: Vec<[f64; N_FEATURES]> = (0..table.len())
         .map(|k| {
