@@ -279,3 +279,21 @@ fn the_do_no_harm_gate_refuses_a_network_worse_than_the_model() {
     export::cli::export(&m, &a).expect("a network that does no harm exports");
     assert!(!std::fs::read_to_string(&out).unwrap().contains("WARNING"));
 }
+
+#[test]
+fn model_metadata_never_reaches_the_generated_code_as_text() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let out = dir.path().join("model.rs");
+    let a = args(out.clone(), Precision::F32);
+    let mut m = small();
+    // A preset and names that would end a `//` comment or a string literal.
+    m.preset = "paper\npub static EVIL: u8 = 1; //".into();
+    m.input_names = vec!["a\"b".into(), "c\n#[x]".into(), "d".into()];
+    m.output_names = vec!["y\\\"".into()];
+    export::cli::export(&m, &a).expect("exports as a custom network");
+    let text = std::fs::read_to_string(&out).unwrap();
+    assert!(!text.contains("EVIL"), "metadata pasted into the file");
+    assert!(!text.contains("\n#[x]"), "a name broke out of its literal");
+    assert!(text.contains("FeaturePreset::Custom"), "an unknown preset is Custom");
+    assert!(text.contains(r#""c\n#[x]""#), "names are escaped string literals");
+}
