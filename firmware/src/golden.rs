@@ -229,6 +229,42 @@ pub fn dynamics_output(
     model.torques(&q, &qd, &qdd)
 }
 
+/// Cases of the `features` suite.
+pub const FEATURE_CASES: usize = 500;
+
+/// Values per case of the `features` suite: the friction features and the linear
+/// correction.
+pub const FEATURE_VALUES: usize = crate::features::FRICTION_FEATURES + 1;
+
+/// The `features` suite's case: `drive_inputs` of q in [-2π, 2π), qd in [-2, 2) rad/s
+/// (every fourth case inside the rest band), qdd in [-10, 10), model torque in
+/// [-100, 100) N*m, rest direction -1, 0 or +1; the friction features, then the linear
+/// correction with fixed coefficients.
+pub fn feature_output(case: usize) -> [f32; FEATURE_VALUES] {
+    let seed = 0x0FEA_0000u32 ^ (case as u32).wrapping_mul(5);
+    let r = |k: u32| 2.0 * unit(hash(seed + k)) - 1.0;
+    let band = if case % 4 == 0 {
+        crate::features::REST_BAND_RAD_S
+    } else {
+        2.0
+    };
+    let x = crate::features::drive_inputs(
+        2.0 * core::f32::consts::TAU * r(0),
+        band * r(1),
+        10.0 * r(2),
+        100.0 * r(3),
+        (case % 3) as f32 - 1.0,
+    );
+    let coefficients: [f32; crate::features::FRICTION_FEATURES] =
+        core::array::from_fn(|k| 0.5 * r(10 + k as u32));
+    let f = crate::features::friction_features(&x);
+    let mut out = [0.0; FEATURE_VALUES];
+    out[..crate::features::FRICTION_FEATURES].copy_from_slice(&f);
+    out[crate::features::FRICTION_FEATURES] =
+        crate::features::linear_correction_nm(&coefficients, &x);
+    out
+}
+
 /// Golden LSTM: number of inputs.
 pub const LSTM_I: usize = 3;
 /// Golden LSTM: input-layer width.

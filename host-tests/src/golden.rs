@@ -108,6 +108,23 @@ pub fn host_dynamics() -> Vec<Record> {
     out
 }
 
+/// The host's computation of the `features` suite (`firmware::features`: the drive's
+/// friction features and linear correction), function `f<k>`, index and input = the case.
+pub fn host_features() -> Vec<Record> {
+    let mut out = Vec::with_capacity(golden::FEATURE_CASES * golden::FEATURE_VALUES);
+    for case in 0..golden::FEATURE_CASES {
+        for (k, v) in golden::feature_output(case).iter().enumerate() {
+            out.push(Record::new(
+                &format!("f{k}"),
+                case,
+                case as u32,
+                v.to_bits(),
+            ));
+        }
+    }
+    out
+}
+
 /// The host's computation of the `lstm` suite: the golden network streamed step by step.
 pub fn host_lstm() -> Vec<Record> {
     let mut out = Vec::with_capacity(golden::LSTM_STEPS * golden::LSTM_O);
@@ -173,6 +190,7 @@ pub fn check_report(report: &str) -> Result<Vec<SuiteCheck>> {
         ("math", host_math()),
         ("dot", host_dot()),
         ("dynamics", host_dynamics()),
+        ("features", host_features()),
         ("lstm", host_lstm()),
     ];
     for g in GoldenModel::ALL {

@@ -294,6 +294,12 @@ fn model_metadata_never_reaches_the_generated_code_as_text() {
     let text = std::fs::read_to_string(&out).unwrap();
     assert!(!text.contains("EVIL"), "metadata pasted into the file");
     assert!(!text.contains("\n#[x]"), "a name broke out of its literal");
-    assert!(text.contains("FeaturePreset::Custom"), "an unknown preset is Custom");
-    assert!(text.contains(r#""c\n#[x]""#), "names are escaped string literals");
+    assert!(
+        text.contains("FeaturePreset::Custom"),
+        "an unknown preset is Custom"
+    );
+    assert!(
+        text.contains(r#""c\n#[x]""#),
+        "names are escaped string literals"
+    );
 }

@@ -83,6 +83,23 @@ fn main() -> ! {
     out.line(format_args!("@end dot"));
 
     out.line(format_args!(
+        "@suite features {}",
+        golden::FEATURE_CASES * golden::FEATURE_VALUES
+    ));
+    for case in 0..golden::FEATURE_CASES {
+        for (k, v) in golden::feature_output(case).iter().enumerate() {
+            out.line(format_args!(
+                "f{} {} {:08x} {:08x}",
+                k,
+                case,
+                case as u32,
+                v.to_bits()
+            ));
+        }
+    }
+    out.line(format_args!("@end features"));
+
+    out.line(format_args!(
         "@suite dynamics {}",
         golden::DYNAMICS_CASES * golden::DYNAMICS_JOINTS
     ));
