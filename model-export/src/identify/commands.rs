@@ -123,7 +123,8 @@ pub struct TorqueArgs {
     pub pre: PreprocessArgs,
     /// Write the LSTM compensation dataset instead (`model-export train` reads it):
     /// `time_s`, then per modelled joint N (1-based robot joint number) `q_jN` [rad],
-    /// `qd_jN` [rad/s], `tau_meas_jN` and `tau_model_jN` [N·m]. Use it with
+    /// `qd_jN` [rad/s], `tau_meas_jN` and `tau_model_jN` [N·m], `qdd_jN` [rad/s²], and
+    /// the drive's own features `sin_q_jN`, `cos_q_jN`, `rest_dir_jN`. Use it with
     /// `--trim-rest-rad-s 0 --torque-cutoff-hz 0` to keep every sample as the drive logged it.
     #[arg(long)]
     pub dataset: bool,
