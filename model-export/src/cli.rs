@@ -230,6 +230,10 @@ pub struct ImportArgs {
     /// Relative tolerance for `--reference` (of the outputs' RMS).
     #[arg(long, default_value_t = 1e-5)]
     pub tolerance: f64,
+    /// The activation after the input layer, for files without `input_activation`
+    /// metadata (`tanh`; `linear` is refused: the firmware's input layer applies tanh).
+    #[arg(long, value_parser = ["tanh", "linear"])]
+    pub input_activation: Option<String>,
 }
 
 fn load(paths: &[PathBuf], spec: &FeatureSpec) -> Result<Vec<Sequence>> {
@@ -457,7 +461,7 @@ pub fn check_reference(model: &crate::nn::LstmModel, reference: &std::path::Path
 }
 
 fn import_cmd(a: ImportArgs) -> Result<()> {
-    let model = io::read_model(&a.torch)?;
+    let model = io::read_model_with(&a.torch, a.input_activation.as_deref())?;
     println!(
         "{}: {:?}, preset `{}`",
         a.torch.display(),

@@ -411,3 +411,108 @@ fn drive_linear_stage_is_fitted_stored_and_streamed() {
     let e = format!("{:#}", m.validate().unwrap_err());
     assert!(e.contains("linear.weight") && e.contains("drive"), "{e}");
 }
+
+/// Writes `m`'s tensors (plus `extra`) as safetensors with `metadata`, as a PyTorch script
+/// would; returns the path.
+fn torch_style_file(
+    dir: &Path,
+    m: &LstmModel,
+    extra: &[(&str, Vec<usize>, Vec<f32>)],
+    metadata: &[(&str, &str)],
+) -> PathBuf {
+    use safetensors::{Dtype, tensor::TensorView};
+    let d = m.dims;
+    let shape = |n: &str| -> Vec<usize> {
+        match n {
+            "input.weight" => vec![d.embed, d.input],
+            "input.bias" => vec![d.embed],
+            "lstm.weight_ih_l0" => vec![4 * d.hidden, d.embed],
+            "lstm.weight_hh_l0" => vec![4 * d.hidden, d.hidden],
+            "lstm.bias_ih_l0" | "lstm.bias_hh_l0" => vec![4 * d.hidden],
+            "output.weight" => vec![d.output, d.hidden],
+            "output.bias" | "norm.output_mean" | "norm.output_std" => vec![d.output],
+            _ => vec![d.input],
+        }
+    };
+    let mut tensors: Vec<(String, Vec<usize>, Vec<u8>)> = m
+        .tensors()
+        .iter()
+        .map(|(n, v)| {
+            (
+                n.to_string(),
+                shape(n),
+                v.iter().flat_map(|x| x.to_le_bytes()).collect(),
+            )
+        })
+        .collect();
+    for (n, s, v) in extra {
+        tensors.push((
+            n.to_string(),
+            s.clone(),
+            v.iter().flat_map(|x| x.to_le_bytes()).collect(),
+        ));
+    }
+    let views: Vec<(String, TensorView)> = tensors
+        .iter()
+        .map(|(n, s, b)| {
+            (
+                n.clone(),
+                TensorView::new(Dtype::F32, s.clone(), b).unwrap(),
+            )
+        })
+        .collect();
+    let meta: std::collections::HashMap<String, String> = metadata
+        .iter()
+        .map(|(k, v)| (k.to_string(), v.to_string()))
+        .collect();
+    let bytes = safetensors::serialize(views, Some(meta)).unwrap();
+    let path = dir.join("torch.safetensors");
+    std::fs::write(&path, bytes).unwrap();
+    path
+}
+
+#[test]
+fn pytorch_files_that_would_import_wrongly_are_refused_naming_why() {
+    let dir = tempfile::tempdir().unwrap();
+    let m = LstmModel::init(
+        LstmDims {
+            input: 3,
+            embed: 4,
+            hidden: 5,
+            output: 2,
+        },
+        4,
+    );
+    // No metadata: the input activation must be said, and must be one the firmware runs.
+    let bare = torch_style_file(dir.path(), &m, &[], &[]);
+    let e = format!("{:#}", io::read_model(&bare).unwrap_err());
+    assert!(e.contains("--input-activation"), "{e}");
+    let e = format!(
+        "{:#}",
+        io::read_model_with(&bare, Some("linear")).unwrap_err()
+    );
+    assert!(e.contains("linear") && e.contains("not supported"), "{e}");
+    let ok = io::read_model_with(&bare, Some("tanh")).expect("said tanh");
+    assert_eq!(ok.w_ih, m.w_ih);
+    // A 2-layer nn.LSTM: the second layer's tensors are named, not dropped.
+    let h4 = 4 * 5;
+    let extra = [
+        ("lstm.weight_ih_l1", vec![h4, 5], vec![0.1; h4 * 5]),
+        ("lstm.weight_hh_l1", vec![h4, 5], vec![0.1; h4 * 5]),
+    ];
+    let two = torch_style_file(dir.path(), &m, &extra, &[("input_activation", "tanh")]);
+    let e = format!("{:#}", io::read_model(&two).unwrap_err());
+    assert!(
+        e.contains("lstm.weight_hh_l1")
+            && e.contains("lstm.weight_ih_l1")
+            && e.contains("second LSTM layer"),
+        "{e}"
+    );
+    // Metadata and the caller disagree.
+    let tagged = torch_style_file(dir.path(), &m, &[], &[("input_activation", "tanh")]);
+    let e = format!(
+        "{:#}",
+        io::read_model_with(&tagged, Some("linear")).unwrap_err()
+    );
+    assert!(e.contains("disagrees"), "{e}");
+}

@@ -10,8 +10,11 @@
 //! | `norm.output_mean` / `norm.output_std` | `[O]` | buffers: `y = y_n * std + mean` |
 //!
 //! All tensors are F32 (F64 and F16/BF16 are accepted on import and converted).
-//! Metadata (optional on import): `input_names` and `output_names` (comma-separated
-//! column names), `preset`, `input_activation` (must be `tanh` if present).
+//! Metadata: `input_names` and `output_names` (comma-separated column names, optional),
+//! `preset` (optional), `input_activation` (`tanh`; a file without it needs the caller's
+//! word, `import --input-activation`, since guessing wrong changes every output). A tensor
+//! this layout does not use (a second LSTM layer's `*_l1`, a projection) is an error
+//! naming it, never silently dropped.
 use super::model::LstmModel;
 use anyhow::{Context, Result, bail};
 use firmware::lstm::LstmDims;
@@ -21,8 +24,15 @@ use std::path::Path;
 
 /// Reads a model from a safetensors file; names the file and the tensor on any error.
 pub fn read_model(path: &Path) -> Result<LstmModel> {
+    read_model_with(path, None)
+}
+
+/// [`read_model`] with the input layer's activation given by the caller (`tanh` or
+/// `linear`) for files without `input_activation` metadata; it must agree with the
+/// metadata where there is some.
+pub fn read_model_with(path: &Path, input_activation: Option<&str>) -> Result<LstmModel> {
     let bytes = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
-    parse_model(&bytes).with_context(|| format!("{}", path.display()))
+    parse_model_with(&bytes, input_activation).with_context(|| format!("{}", path.display()))
 }
 
 fn to_f32(name: &str, t: &TensorView) -> Result<Vec<f32>> {
@@ -40,10 +50,70 @@ fn to_f32(name: &str, t: &TensorView) -> Result<Vec<f32>> {
     })
 }
 
-/// Parses a model from safetensors bytes.
+/// Parses a model from safetensors bytes (with `input_activation` metadata).
 pub fn parse_model(bytes: &[u8]) -> Result<LstmModel> {
+    parse_model_with(bytes, None)
+}
+
+/// Tensor names this layout reads.
+const KNOWN_TENSORS: [&str; 13] = [
+    "input.weight",
+    "input.bias",
+    "lstm.weight_ih_l0",
+    "lstm.weight_hh_l0",
+    "lstm.bias_ih_l0",
+    "lstm.bias_hh_l0",
+    "output.weight",
+    "output.bias",
+    "norm.input_mean",
+    "norm.input_std",
+    "norm.output_mean",
+    "norm.output_std",
+    LINEAR,
+];
+
+/// [`parse_model`] with the caller's word on the input activation (see
+/// [`read_model_with`]).
+pub fn parse_model_with(bytes: &[u8], input_activation: Option<&str>) -> Result<LstmModel> {
     let (_, meta) = SafeTensors::read_metadata(bytes).context("not a safetensors file")?;
     let st = SafeTensors::deserialize(bytes).context("not a safetensors file")?;
+    let mut unused: Vec<String> = st
+        .names()
+        .into_iter()
+        .filter(|n| !KNOWN_TENSORS.contains(n))
+        .map(str::to_string)
+        .collect();
+    unused.sort();
+    if !unused.is_empty() {
+        let layers = if unused.iter().any(|n| n.contains("_l1")) {
+            " (a second LSTM layer: the firmware runs one)"
+        } else {
+            ""
+        };
+        bail!(
+            "tensors this network layout does not use{layers}: {}; the layout is input -> \
+             one LSTM layer -> output (model-export/README.md, PyTorch interchange)",
+            unused.join(", ")
+        );
+    }
+    let file_activation = meta
+        .metadata()
+        .as_ref()
+        .and_then(|m| m.get("input_activation"))
+        .map(String::as_str);
+    match (file_activation, input_activation) {
+        (Some(f), Some(given)) if f != given => {
+            bail!("metadata input_activation `{f}` disagrees with --input-activation {given}")
+        }
+        (None, None) => bail!(
+            "no `input_activation` metadata: say which activation follows the input layer \
+             (`model-export import --input-activation tanh|linear`)"
+        ),
+        (Some(act), _) | (None, Some(act)) if act != "tanh" => {
+            bail!("input_activation `{act}` is not supported: the firmware's input layer uses tanh")
+        }
+        _ => {}
+    }
     let get = |name: &str| -> Result<(Vec<usize>, Vec<f32>)> {
         let t = st
             .tensor(name)
@@ -100,13 +170,6 @@ pub fn parse_model(bytes: &[u8]) -> Result<LstmModel> {
             Err(_) => Vec::new(),
         },
     };
-    let act = meta
-        .metadata()
-        .as_ref()
-        .and_then(|m| m.get("input_activation"));
-    if let Some(act) = act.filter(|a| a.as_str() != "tanh") {
-        bail!("input_activation `{act}` is not supported: the firmware's input layer uses tanh");
-    }
     m.validate()?;
     Ok(m)
 }
