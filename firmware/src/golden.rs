@@ -243,7 +243,7 @@ pub const FEATURE_VALUES: usize = crate::features::FRICTION_FEATURES + 1;
 pub fn feature_output(case: usize) -> [f32; FEATURE_VALUES] {
     let seed = 0x0FEA_0000u32 ^ (case as u32).wrapping_mul(5);
     let r = |k: u32| 2.0 * unit(hash(seed + k)) - 1.0;
-    let band = if case % 4 == 0 {
+    let band = if case.is_multiple_of(4) {
         crate::features::REST_BAND_RAD_S
     } else {
         2.0
