@@ -175,3 +175,57 @@ fn a_huge_finite_log_value_is_an_error_not_nan_rows() {
     );
     assert!(!out.exists(), "wrote {}", out.display());
 }
+
+#[test]
+fn a_time_jump_in_one_row_is_an_error_not_a_huge_grid() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let mut csv = String::new();
+    for k in 0..300 {
+        // One row 1e7 s later (a clock jump): 1e9 samples at 100 Hz.
+        let t = k as f64 * 0.01 + if k >= 200 { 1e7 } else { 0.0 };
+        let row: Vec<String> = std::iter::once(t)
+            .chain([0.1 * t.sin(); 6])
+            .chain([0.0; 6])
+            .chain([1.0; 6])
+            .map(|v| v.to_string())
+            .collect();
+        csv += &row.join(",");
+        csv.push('\n');
+    }
+    let log = d.join("jump.csv");
+    std::fs::write(&log, csv).unwrap();
+    let out = d.join("tau.csv");
+    let (r, l, o) = (
+        robot(),
+        log.display().to_string(),
+        out.display().to_string(),
+    );
+    let e = cli(&[
+        "torque", "--robot", &r, "--layout", "torque", "--log", &l, "-o", &o,
+    ]);
+    let e = format!("{:#}", e.expect_err("a 1e7 s time jump"));
+    assert!(
+        e.contains("jump.csv") && e.contains("largest time step"),
+        "{e}"
+    );
+    assert!(!out.exists());
+}
+
+#[test]
+fn joint_limits_above_pi_do_not_panic_the_base_parameters() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("robots/planar_2r.toml"),
+    )
+    .unwrap()
+    // Both joints' limits above pi: no range inside ±pi to sample.
+    .replacen("q_min = -3.0\nq_max = 3.0", "q_min = 3.3\nq_max = 3.6", 1)
+    .replacen("q_min = -2.6\nq_max = 2.6", "q_min = 3.5\nq_max = 4.0", 1);
+    assert!(text.contains("q_min = 3.3") && text.contains("q_min = 3.5"));
+    let path = dir.path().join("r.toml");
+    std::fs::write(&path, text).unwrap();
+    let robot = model_export::robot::Robot::load(&path).unwrap();
+    let base = model_export::base::BaseParameters::compute(&robot, 1);
+    assert!(base.is_ok(), "{:?}", base.err());
+}

@@ -103,11 +103,20 @@ pub fn random_states(
                     .q_max_rad
                     .unwrap_or(std::f64::consts::PI)
                     .min(std::f64::consts::PI);
-                q.push(rng.gen_range(lo..hi));
-                let v = l.qd_max_rad_s.unwrap_or(2.0);
-                qd.push(rng.gen_range(-v..v));
-                let a = l.qdd_max_rad_s2.unwrap_or(5.0);
-                qdd.push(rng.gen_range(-a..a));
+                // Limits that leave no range inside ±π (both above π, or equal) sample
+                // their own range, or the one position they allow.
+                let (lo, hi) = if lo < hi {
+                    (lo, hi)
+                } else {
+                    let (a, b) = (l.q_min_rad.unwrap_or(lo), l.q_max_rad.unwrap_or(hi));
+                    (a.min(b), a.max(b))
+                };
+                let symmetric = |rng: &mut ChaCha8Rng, m: f64| {
+                    if m > 0.0 { rng.gen_range(-m..m) } else { 0.0 }
+                };
+                q.push(if lo < hi { rng.gen_range(lo..hi) } else { lo });
+                qd.push(symmetric(&mut rng, l.qd_max_rad_s.unwrap_or(2.0)));
+                qdd.push(symmetric(&mut rng, l.qdd_max_rad_s2.unwrap_or(5.0)));
             }
             (q, qd, qdd)
         })

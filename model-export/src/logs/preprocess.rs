@@ -48,6 +48,9 @@ impl Default for PreprocessOptions {
     }
 }
 
+/// Most samples a log's uniform grid may have (10 M: 28 h at 100 Hz, 2.8 h at 1 kHz).
+pub const MAX_GRID_SAMPLES: usize = 10_000_000;
+
 /// Preprocessed samples on a uniform grid: `x[joint][sample]`.
 #[derive(Debug, Clone)]
 pub struct Samples {
@@ -122,6 +125,26 @@ pub fn preprocess(raw: &RawLog, opt: &PreprocessOptions) -> Result<Samples, LogE
         None => median_step(t),
     };
     let fs = 1.0 / dt;
+    // A time jump in one row (or a huge resample rate) would ask for a grid of billions
+    // of samples: bounded, the error names the largest jump.
+    let span = t[t.len() - 1] - t[0];
+    if span.is_nan() || span / dt > MAX_GRID_SAMPLES as f64 {
+        let (k, jump) = t
+            .windows(2)
+            .map(|w| w[1] - w[0])
+            .enumerate()
+            .fold((0, 0.0f64), |m, (k, d)| if d > m.1 { (k, d) } else { m });
+        return Err(err(
+            None,
+            Some("time"),
+            format!(
+                "{span} s at {fs} Hz needs more than {MAX_GRID_SAMPLES} samples on the uniform \
+                 grid (largest time step: {jump} s, after t = {} s, sample {})",
+                t[k],
+                k + 1
+            ),
+        ));
+    }
     let grid = uniform_grid(t[0], t[t.len() - 1], dt);
     let pad = |fc: f64| ((3.0 * fs / fc).ceil() as usize).max(3 * opt.filter_order);
     let lowpass = |fc: Option<f64>,
