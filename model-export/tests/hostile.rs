@@ -229,3 +229,23 @@ fn joint_limits_above_pi_do_not_panic_the_base_parameters() {
     let base = model_export::base::BaseParameters::compute(&robot, 1);
     assert!(base.is_ok(), "{:?}", base.err());
 }
+
+#[test]
+fn a_simulation_longer_than_the_log_limit_is_an_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("log.csv").display().to_string();
+    let args = [
+        "simulate",
+        "--seeded-trajectory",
+        "1",
+        "--joints",
+        "4,5,6",
+        "--periods",
+        "1000000000",
+        "-o",
+        &out,
+    ];
+    let e = format!("{:#}", cli(&args).expect_err("1e9 periods"));
+    assert!(e.contains("logged samples"), "{e}");
+    assert!(!Path::new(&out).exists());
+}

@@ -17,7 +17,7 @@ use sha2::{Digest, Sha256};
 use std::fmt;
 use std::path::{Path, PathBuf};
 
-pub use preprocess::{PreprocessOptions, Samples, preprocess};
+pub use preprocess::{MAX_GRID_SAMPLES, PreprocessOptions, Samples, preprocess};
 
 /// One column of a log: by header name or by 1-based index.
 #[derive(Debug, Clone, PartialEq, Eq)]

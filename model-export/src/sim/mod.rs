@@ -175,6 +175,15 @@ pub fn simulate<R: RigidBodyModel + ?Sized>(
         duration.is_finite() && duration > 0.0,
         "trajectory has no duration"
     );
+    // The log's rows are kept in memory: a bounded count (`--periods 1e9`, a period of
+    // 1e308 s) is an error naming the limit, not an allocation failure.
+    ensure!(
+        duration * cfg.controller_rate_hz <= crate::logs::MAX_GRID_SAMPLES as f64,
+        "{duration} s at {} Hz is more than {} logged samples: shorten the trajectory or \
+         its periods",
+        cfg.controller_rate_hz,
+        crate::logs::MAX_GRID_SAMPLES
+    );
     let h = 1.0 / cfg.internal_rate_hz;
     let steps = (duration * cfg.internal_rate_hz + 1e-6).floor() as usize;
     let fx = cfg.effects;
