@@ -96,24 +96,6 @@ pub fn parse_model_with(bytes: &[u8], input_activation: Option<&str>) -> Result<
             unused.join(", ")
         );
     }
-    let file_activation = meta
-        .metadata()
-        .as_ref()
-        .and_then(|m| m.get("input_activation"))
-        .map(String::as_str);
-    match (file_activation, input_activation) {
-        (Some(f), Some(given)) if f != given => {
-            bail!("metadata input_activation `{f}` disagrees with --input-activation {given}")
-        }
-        (None, None) => bail!(
-            "no `input_activation` metadata: say which activation follows the input layer \
-             (`model-export import --input-activation tanh|linear`)"
-        ),
-        (Some(act), _) | (None, Some(act)) if act != "tanh" => {
-            bail!("input_activation `{act}` is not supported: the firmware's input layer uses tanh")
-        }
-        _ => {}
-    }
     let get = |name: &str| -> Result<(Vec<usize>, Vec<f32>)> {
         let t = st
             .tensor(name)
@@ -171,6 +153,25 @@ pub fn parse_model_with(bytes: &[u8], input_activation: Option<&str>) -> Result<
         },
     };
     m.validate()?;
+    // After the tensors: a file that is broken says so first.
+    let file_activation = meta
+        .metadata()
+        .as_ref()
+        .and_then(|m| m.get("input_activation"))
+        .map(String::as_str);
+    match (file_activation, input_activation) {
+        (Some(f), Some(given)) if f != given => {
+            bail!("metadata input_activation `{f}` disagrees with --input-activation {given}")
+        }
+        (None, None) => bail!(
+            "no `input_activation` metadata: say which activation follows the input layer \
+             (`model-export import --input-activation tanh|linear`)"
+        ),
+        (Some(act), _) | (None, Some(act)) if act != "tanh" => {
+            bail!("input_activation `{act}` is not supported: the firmware's input layer uses tanh")
+        }
+        _ => {}
+    }
     Ok(m)
 }
 
