@@ -309,9 +309,8 @@ fn train_cmd(a: TrainArgs) -> Result<()> {
         println!("output gains on the validation runs (do-no-harm shrinkage): {gains:?}");
     }
     model.linear = linear;
-    model.validate()?;
-    io::write_model(&model, &a.out)?;
-    plot::loss_curve(&hist, &a.loss_plot)?;
+    let model_bytes = io::model_bytes(&model)?;
+    let loss_svg = plot::loss_curve_svg(&hist)?;
     println!(
         "learning rate {} (trials: {:?}); best epoch {} of {}",
         hist.lr,
@@ -332,12 +331,22 @@ fn train_cmd(a: TrainArgs) -> Result<()> {
             serde_json::json!({"file": p.display().to_string(), "steps": t.len(), "outputs": rows}),
         );
     }
-    println!("wrote {} and {}", a.out.display(), a.loss_plot.display());
-    if let Some(r) = a.report {
-        let j = serde_json::json!({"preset": spec.preset, "lr": hist.lr, "lr_trials": hist.lr_trials,
-            "epochs": hist.train.len(), "best_epoch": hist.best_epoch + 1, "output_gains": gains, "train_loss": hist.train, "val_loss": hist.val, "test": reports});
-        crate::nn::write_atomic(&r, serde_json::to_string_pretty(&j)?.as_bytes())?;
+    let report = match &a.report {
+        Some(_) => {
+            let j = serde_json::json!({"preset": spec.preset, "lr": hist.lr, "lr_trials": hist.lr_trials,
+                "epochs": hist.train.len(), "best_epoch": hist.best_epoch + 1, "output_gains": gains, "train_loss": hist.train, "val_loss": hist.val, "test": reports});
+            Some(serde_json::to_string_pretty(&j)?)
+        }
+        None => None,
+    };
+    // The model, the plot and the report: all three or none.
+    let mut files: Vec<(&Path, &[u8])> =
+        vec![(&a.out, &model_bytes), (&a.loss_plot, loss_svg.as_bytes())];
+    if let (Some(path), Some(text)) = (&a.report, &report) {
+        files.push((path, text.as_bytes()));
     }
+    crate::model_file::write_atomic_all(&files)?;
+    println!("wrote {} and {}", a.out.display(), a.loss_plot.display());
     Ok(())
 }
 

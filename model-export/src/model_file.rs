@@ -203,9 +203,33 @@ pub fn refuse_outputs_that_are_inputs(inputs: &[&Path], outputs: &[&Path]) -> an
     Ok(())
 }
 
+/// Writes several outputs all or none: every one is staged in a temporary file beside its
+/// destination (non-regular destinations refused, as in [`write_atomic`]) before any is
+/// renamed into place, so a failure while preparing them leaves every output as it was.
+pub fn write_atomic_all(files: &[(&Path, &[u8])]) -> anyhow::Result<()> {
+    let mut staged = Vec::with_capacity(files.len());
+    for (path, bytes) in files {
+        staged.push((path, stage(path, bytes)?));
+    }
+    for (path, tmp) in staged {
+        tmp.persist(path).map_err(|e| {
+            anyhow::anyhow!("{}: cannot rename into place: {}", path.display(), e.error)
+        })?;
+    }
+    Ok(())
+}
+
 /// Writes `bytes` to `path` via a temporary file in the same directory and a rename:
 /// either the whole new content is there, or the old state is untouched.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> anyhow::Result<()> {
+    stage(path, bytes)?.persist(path).map_err(|e| {
+        anyhow::anyhow!("{}: cannot rename into place: {}", path.display(), e.error)
+    })?;
+    Ok(())
+}
+
+/// `bytes` in a synced, 0644 temporary file beside `path`, ready to be renamed onto it.
+fn stage(path: &Path, bytes: &[u8]) -> anyhow::Result<tempfile::NamedTempFile> {
     // Renaming over a device, a directory or a pipe would replace it (`-o /dev/null`
     // once replaced the system's null device with a file): only regular files.
     if let Ok(meta) = std::fs::metadata(path)
@@ -238,10 +262,7 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> anyhow::Result<()> {
     tmp.write_all(bytes)
         .and_then(|_| tmp.as_file().sync_all())
         .map_err(|e| anyhow::anyhow!("{}: write failed: {e}", path.display()))?;
-    tmp.persist(path).map_err(|e| {
-        anyhow::anyhow!("{}: cannot rename into place: {}", path.display(), e.error)
-    })?;
-    Ok(())
+    Ok(tmp)
 }
 
 #[cfg(test)]

@@ -249,3 +249,65 @@ fn a_simulation_longer_than_the_log_limit_is_an_error() {
     assert!(e.contains("logged samples"), "{e}");
     assert!(!Path::new(&out).exists());
 }
+
+#[test]
+fn train_writes_its_model_plot_and_report_all_or_none() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let data = d.join("data.csv");
+    let mut csv = String::from("time_s,q_j4,qd_j4,tau_meas_j4,tau_model_j4\n");
+    for k in 0..400 {
+        let t = k as f64 * 0.01;
+        csv += &format!(
+            "{t},{},{},{},{}\n",
+            t.sin(),
+            t.cos(),
+            2.0 * t.sin(),
+            1.9 * t.sin()
+        );
+    }
+    std::fs::write(&data, csv).unwrap();
+    let (data, out, plot) = (
+        data.display().to_string(),
+        d.join("m.safetensors").display().to_string(),
+        d.join("loss.svg").display().to_string(),
+    );
+    // The report cannot be written (its folder does not exist): nothing is.
+    let report = d.join("missing/report.json").display().to_string();
+    let args = [
+        "train",
+        "--data",
+        &data,
+        "--preset",
+        "feedforward",
+        "--joints",
+        "4",
+        "--epochs",
+        "1",
+        "--embed",
+        "4",
+        "--hidden",
+        "4",
+        "--window",
+        "20",
+        "--burn-in",
+        "5",
+        "--quiet",
+        "--out",
+        &out,
+        "--loss-plot",
+        &plot,
+        "--report",
+        &report,
+    ];
+    assert!(cli(&args).is_err());
+    assert!(
+        !Path::new(&out).exists() && !Path::new(&plot).exists(),
+        "a partial output"
+    );
+    let report = d.join("report.json").display().to_string();
+    let mut args = args.to_vec();
+    *args.last_mut().unwrap() = &report;
+    cli(&args).expect("trains");
+    assert!(Path::new(&out).exists() && Path::new(&plot).exists() && Path::new(&report).exists());
+}

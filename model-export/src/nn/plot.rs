@@ -7,6 +7,11 @@ use std::path::Path;
 
 /// Draws training and validation RMS loss per epoch to an SVG file (written atomically).
 pub fn loss_curve(h: &History, path: &Path) -> Result<()> {
+    crate::nn::write_atomic(path, loss_curve_svg(h)?.as_bytes())
+}
+
+/// The loss curve of [`loss_curve`] as SVG text.
+pub fn loss_curve_svg(h: &History) -> Result<String> {
     let mut svg = String::new();
     {
         let root = SVGBackend::with_string(&mut svg, (800, 500)).into_drawing_area();
@@ -52,7 +57,7 @@ pub fn loss_curve(h: &History, path: &Path) -> Result<()> {
         )?;
         root.present().map_err(|e| anyhow!("{e}"))?;
     }
-    crate::nn::write_atomic(path, svg.as_bytes())
+    Ok(svg)
 }
 
 /// The paper's Figures 12 and 13: per output, the measured torque, the prediction and
