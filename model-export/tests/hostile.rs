@@ -5,6 +5,45 @@ use clap::Parser;
 use model_export::cli::{Cli, run};
 use std::path::Path;
 
+/// A small `feedforward` dataset of joint 4 in `dir`; returns its path.
+fn feedforward_data(dir: &Path) -> std::path::PathBuf {
+    let data = dir.join("data.csv");
+    let mut csv = String::from("time_s,q_j4,qd_j4,tau_meas_j4,tau_model_j4\n");
+    for k in 0..400 {
+        let t = k as f64 * 0.01;
+        let (s, c) = t.sin_cos();
+        csv += &format!("{t},{s},{c},{},{}\n", 2.0 * s, 1.9 * s);
+    }
+    std::fs::write(&data, csv).unwrap();
+    data
+}
+
+/// `train` of one epoch on [`feedforward_data`] in `dir`: the arguments, and the model and
+/// loss-plot paths they name.
+fn train_args(dir: &Path) -> (Vec<String>, std::path::PathBuf, std::path::PathBuf) {
+    let (out, plot) = (dir.join("m.safetensors"), dir.join("loss.svg"));
+    let data = feedforward_data(dir);
+    let args = [
+        "train",
+        "--data",
+        &data.display().to_string(),
+        "--preset",
+        "feedforward",
+        "--joints",
+        "4",
+        "--epochs",
+        "1",
+        "--quiet",
+        "--out",
+        &out.display().to_string(),
+        "--loss-plot",
+        &plot.display().to_string(),
+    ]
+    .map(String::from)
+    .to_vec();
+    (args, out, plot)
+}
+
 fn cli(args: &[&str]) -> anyhow::Result<()> {
     let mut v = vec!["model-export"];
     v.extend_from_slice(args);
@@ -89,77 +128,43 @@ fn two_outputs_that_are_one_file_are_refused() {
 #[test]
 fn training_sizes_of_zero_are_errors_naming_the_option() {
     let dir = tempfile::tempdir().unwrap();
-    let d = dir.path();
-    let data = d.join("data.csv");
-    let mut csv = String::from("time_s,q_j4,qd_j4,tau_meas_j4,tau_model_j4\n");
-    for k in 0..400 {
-        let t = k as f64 * 0.01;
-        csv += &format!(
-            "{t},{},{},{},{}\n",
-            t.sin(),
-            t.cos(),
-            2.0 * t.sin(),
-            1.9 * t.sin()
-        );
-    }
-    std::fs::write(&data, csv).unwrap();
-    let data = data.display().to_string();
-    let out = d.join("m.safetensors").display().to_string();
-    let plot = d.join("loss.svg").display().to_string();
+    let (base, out, plot) = train_args(dir.path());
     for (flag, value) in [
         ("--hidden", "0"),
         ("--embed", "0"),
         ("--window", "0"),
         ("--batch", "0"),
     ] {
-        let args = [
-            "train",
-            "--data",
-            &data,
-            "--preset",
-            "feedforward",
-            "--joints",
-            "4",
-            "--epochs",
-            "1",
-            "--quiet",
-            "--out",
-            &out,
-            "--loss-plot",
-            &plot,
-            flag,
-            value,
-        ];
+        let mut args: Vec<&str> = base.iter().map(String::as_str).collect();
+        args.extend([flag, value]);
         let e = format!("{:#}", cli(&args).expect_err(flag));
         assert!(
             e.contains(&format!("{flag} must be at least 1")),
             "{flag}: {e}"
         );
-        assert!(!Path::new(&out).exists() && !Path::new(&plot).exists());
+        assert!(!out.exists() && !plot.exists());
     }
 }
 
-#[test]
-fn a_huge_finite_log_value_is_an_error_not_nan_rows() {
+/// A six-joint log in the `torque` layout (time, q, qd, tau), row `k` giving `(t, q)`;
+/// runs `torque` on it and returns the error and whether an output was written.
+fn torque_on_log(name: &str, row: impl Fn(usize) -> (f64, f64)) -> (String, bool) {
     let dir = tempfile::tempdir().unwrap();
-    let d = dir.path();
-    // A log in the `torque` layout of six joints (time, q, qd, tau) with one cell at 1e300.
     let mut csv = String::new();
     for k in 0..300 {
-        let t = k as f64 * 0.01;
-        let q = if k == 150 { 1e300 } else { 0.1 * t.sin() };
-        let row: Vec<String> = std::iter::once(t)
+        let (t, q) = row(k);
+        let cells: Vec<String> = std::iter::once(t)
             .chain([q; 6])
             .chain([0.1 * t.cos(); 6])
             .chain([1.0; 6])
             .map(|v| v.to_string())
             .collect();
-        csv += &row.join(",");
+        csv += &cells.join(",");
         csv.push('\n');
     }
-    let log = d.join("log.csv");
+    let log = dir.path().join(name);
     std::fs::write(&log, csv).unwrap();
-    let out = d.join("tau.csv");
+    let out = dir.path().join("tau.csv");
     let (r, l, o) = (
         robot(),
         log.display().to_string(),
@@ -167,49 +172,37 @@ fn a_huge_finite_log_value_is_an_error_not_nan_rows() {
     );
     let e = cli(&[
         "torque", "--robot", &r, "--layout", "torque", "--log", &l, "-o", &o,
-    ]);
-    let e = format!("{:#}", e.expect_err("a 1e300 position"));
+    ])
+    .expect_err("a hostile log");
+    (format!("{e:#}"), out.exists())
+}
+
+#[test]
+fn a_huge_finite_log_value_is_an_error_not_nan_rows() {
+    // One position cell at 1e300.
+    let (e, wrote) = torque_on_log("log.csv", |k| {
+        let t = k as f64 * 0.01;
+        (t, if k == 150 { 1e300 } else { 0.1 * t.sin() })
+    });
     assert!(
         e.contains("log.csv") && e.contains("model torque of joint"),
         "{e}"
     );
-    assert!(!out.exists(), "wrote {}", out.display());
+    assert!(!wrote);
 }
 
 #[test]
 fn a_time_jump_in_one_row_is_an_error_not_a_huge_grid() {
-    let dir = tempfile::tempdir().unwrap();
-    let d = dir.path();
-    let mut csv = String::new();
-    for k in 0..300 {
-        // One row 1e7 s later (a clock jump): 1e9 samples at 100 Hz.
+    // One row 1e7 s later (a clock jump): 1e9 samples at 100 Hz.
+    let (e, wrote) = torque_on_log("jump.csv", |k| {
         let t = k as f64 * 0.01 + if k >= 200 { 1e7 } else { 0.0 };
-        let row: Vec<String> = std::iter::once(t)
-            .chain([0.1 * t.sin(); 6])
-            .chain([0.0; 6])
-            .chain([1.0; 6])
-            .map(|v| v.to_string())
-            .collect();
-        csv += &row.join(",");
-        csv.push('\n');
-    }
-    let log = d.join("jump.csv");
-    std::fs::write(&log, csv).unwrap();
-    let out = d.join("tau.csv");
-    let (r, l, o) = (
-        robot(),
-        log.display().to_string(),
-        out.display().to_string(),
-    );
-    let e = cli(&[
-        "torque", "--robot", &r, "--layout", "torque", "--log", &l, "-o", &o,
-    ]);
-    let e = format!("{:#}", e.expect_err("a 1e7 s time jump"));
+        (t, 0.1 * t.sin())
+    });
     assert!(
         e.contains("jump.csv") && e.contains("largest time step"),
         "{e}"
     );
-    assert!(!out.exists());
+    assert!(!wrote);
 }
 
 #[test]
@@ -253,37 +246,8 @@ fn a_simulation_longer_than_the_log_limit_is_an_error() {
 #[test]
 fn train_writes_its_model_plot_and_report_all_or_none() {
     let dir = tempfile::tempdir().unwrap();
-    let d = dir.path();
-    let data = d.join("data.csv");
-    let mut csv = String::from("time_s,q_j4,qd_j4,tau_meas_j4,tau_model_j4\n");
-    for k in 0..400 {
-        let t = k as f64 * 0.01;
-        csv += &format!(
-            "{t},{},{},{},{}\n",
-            t.sin(),
-            t.cos(),
-            2.0 * t.sin(),
-            1.9 * t.sin()
-        );
-    }
-    std::fs::write(&data, csv).unwrap();
-    let (data, out, plot) = (
-        data.display().to_string(),
-        d.join("m.safetensors").display().to_string(),
-        d.join("loss.svg").display().to_string(),
-    );
-    // The report cannot be written (its folder does not exist): nothing is.
-    let report = d.join("missing/report.json").display().to_string();
-    let args = [
-        "train",
-        "--data",
-        &data,
-        "--preset",
-        "feedforward",
-        "--joints",
-        "4",
-        "--epochs",
-        "1",
+    let (base, out, plot) = train_args(dir.path());
+    let small = [
         "--embed",
         "4",
         "--hidden",
@@ -292,22 +256,18 @@ fn train_writes_its_model_plot_and_report_all_or_none() {
         "20",
         "--burn-in",
         "5",
-        "--quiet",
-        "--out",
-        &out,
-        "--loss-plot",
-        &plot,
-        "--report",
-        &report,
     ];
-    assert!(cli(&args).is_err());
-    assert!(
-        !Path::new(&out).exists() && !Path::new(&plot).exists(),
-        "a partial output"
-    );
-    let report = d.join("report.json").display().to_string();
-    let mut args = args.to_vec();
-    *args.last_mut().unwrap() = &report;
-    cli(&args).expect("trains");
-    assert!(Path::new(&out).exists() && Path::new(&plot).exists() && Path::new(&report).exists());
+    let run = |report: &Path| {
+        let report = report.display().to_string();
+        let mut args: Vec<&str> = base.iter().map(String::as_str).collect();
+        args.extend(small);
+        args.extend(["--report", report.as_str()]);
+        cli(&args)
+    };
+    // The report cannot be written (its folder does not exist): nothing is.
+    assert!(run(&dir.path().join("missing/report.json")).is_err());
+    assert!(!out.exists() && !plot.exists(), "a partial output");
+    let report = dir.path().join("report.json");
+    run(&report).expect("trains");
+    assert!(out.exists() && plot.exists() && report.exists());
 }
