@@ -86,6 +86,17 @@ pub fn friction_features(x: &[f32; DRIVE_INPUTS_PER_JOINT]) -> [f32; FRICTION_FE
     ]
 }
 
+/// Joint `joint`'s `drive` inputs out of a row of `joints` joints laid out kind-major
+/// (all joints' `sin q`, then all `cos q`, ...), as the predictor and the datasets lay
+/// them out; a row too short for them gives 0.
+pub fn joint_drive_inputs(
+    row: &[f32],
+    joints: usize,
+    joint: usize,
+) -> [f32; DRIVE_INPUTS_PER_JOINT] {
+    core::array::from_fn(|kind| row.get(kind * joints + joint).copied().unwrap_or(0.0))
+}
+
 /// The linear stage's correction [N*m]: `coefficients . friction_features(x)`.
 #[inline]
 pub fn linear_correction_nm(

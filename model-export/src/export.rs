@@ -1102,9 +1102,9 @@ pub mod cli {
         pub allow_worse: bool,
     }
 
-    /// Per validation run and compensated joint: the model alone's and the compensated
-    /// RMS [N*m] (f32 firmware step), for the do-no-harm gate.
-    fn gate(m: &LstmModel, a: &ExportArgs) -> Result<Vec<(PathBuf, usize, f64, f64)>> {
+    /// Per validation run (1-based, `--gate-data` order) and compensated joint: the model
+    /// alone's and the compensated RMS [N*m] (f32 firmware step), for the do-no-harm gate.
+    fn gate(m: &LstmModel, a: &ExportArgs) -> Result<Vec<(usize, usize, f64, f64)>> {
         let spec = crate::nn::data::FeatureSpec::for_preset(&m.preset, &a.joints)
             .with_context(|| {
                 format!(
@@ -1114,13 +1114,13 @@ pub mod cli {
             })?;
         spec.check_model(m)?;
         let mut rows = Vec::new();
-        for path in &a.gate_data {
+        for (run, path) in a.gate_data.iter().enumerate() {
             let table = crate::nn::data::Table::read(path)?;
             let seq = spec
                 .sequence(&table)
                 .with_context(|| format!("{}", path.display()))?;
             for (e, &joint) in crate::nn::eval::evaluate(m, &seq)?.iter().zip(&a.joints) {
-                rows.push((path.clone(), joint, e.rms_before, e.rms_after));
+                rows.push((run + 1, joint, e.rms_before, e.rms_after));
             }
         }
         Ok(rows)
@@ -1202,6 +1202,10 @@ pub mod cli {
                  trained with `--paper-output next`, or the `drive` preset"
             );
         }
+        let warning = match a.model {
+            Some(_) => do_no_harm(m, a)?,
+            None => String::new(),
+        };
         let net = Exported::new(m, a.precision).with_context(|| {
             format!(
                 "exporting {}",
@@ -1241,32 +1245,22 @@ pub mod cli {
             self_check_steps: a.self_check_steps,
         };
         let mut text = render(m, &net, &meta, dynamics.as_ref());
-        if a.model.is_some() {
-            let warning = do_no_harm(m, a)?;
-            if !warning.is_empty() {
-                eprintln!("warning: exported anyway (--allow-worse):\n{warning}");
-                let commented: String = warning.lines().map(|l| format!("// {l}\n")).collect();
-                text = format!(
-                    "// WARNING: exported with --allow-worse; the do-no-harm gate did not pass:\n{commented}{text}"
-                );
-            }
+        if !warning.is_empty() {
+            eprintln!("warning: exported anyway (--allow-worse):\n{warning}");
+            let commented: String = warning.lines().map(|l| format!("// {l}\n")).collect();
+            text = format!(
+                "// WARNING: exported with --allow-worse; the do-no-harm gate did not pass:\n{commented}{text}"
+            );
         }
+        // A source file, 0644 like every output of write_atomic.
         crate::nn::write_atomic(&a.out, text.as_bytes())?;
-        // A source file: readable like any other (the temporary file was 0600).
-        #[cfg(unix)]
-        {
-            use std::os::unix::fs::PermissionsExt;
-            std::fs::set_permissions(&a.out, std::fs::Permissions::from_mode(0o644))
-                .with_context(|| format!("setting permissions of {}", a.out.display()))?;
-        }
         Ok(net)
     }
 
     /// The do-no-harm gate of a trained network: an error listing the per-joint figures
     /// when it is worse than the model alone on any validation run and joint (or has no
     /// validation runs); with `--allow-worse`, that listing as a warning instead (empty
-    /// when the gate passes). The listing holds numbers and file names of the
-    /// validation runs (by number) only.
+    /// when the gate passes). The listing names the validation runs by number only.
     fn do_no_harm(m: &LstmModel, a: &ExportArgs) -> Result<String> {
         if a.gate_data.is_empty() {
             if a.allow_worse {
@@ -1286,13 +1280,8 @@ pub mod cli {
         }
         let mut table = String::from("run | joint | model alone RMS N*m | compensated RMS N*m\n");
         let mut worse = false;
-        for (path, joint, before, after) in &rows {
+        for (run, joint, before, after) in &rows {
             worse |= after.is_nan() || before.is_nan() || after > before;
-            let run = a
-                .gate_data
-                .iter()
-                .position(|p| p == path)
-                .map_or(0, |k| k + 1);
             table += &format!("{run} | {joint} | {before:.4} | {after:.4}\n");
         }
         eprint!("do-no-harm gate:\n{table}");

@@ -72,8 +72,8 @@ pub struct ModelTermsRef {
     pub coulomb_smoothing_rad_s: Option<f64>,
     /// Reflected rotor inertia per joint.
     pub rotor_inertia: bool,
-    /// The extended friction basis per joint (offset, velocity-weakening, quadratic and
-    /// pose terms); absent in older files (false).
+    /// The extended friction basis per joint (offset, velocity-weakening and quadratic
+    /// terms); absent in older files (false).
     #[serde(default)]
     pub extended_friction: bool,
 }
@@ -222,10 +222,7 @@ pub fn write_atomic_all(files: &[(&Path, &[u8])]) -> anyhow::Result<()> {
 /// Writes `bytes` to `path` via a temporary file in the same directory and a rename:
 /// either the whole new content is there, or the old state is untouched.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> anyhow::Result<()> {
-    stage(path, bytes)?.persist(path).map_err(|e| {
-        anyhow::anyhow!("{}: cannot rename into place: {}", path.display(), e.error)
-    })?;
-    Ok(())
+    write_atomic_all(&[(path, bytes)])
 }
 
 /// `bytes` in a synced, 0644 temporary file beside `path`, ready to be renamed onto it.

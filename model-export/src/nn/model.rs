@@ -188,6 +188,20 @@ impl LstmModel {
     }
 }
 
+/// The `drive` preset's linear stage (`LstmModel::linear`, `[O, 16]`; empty: none) on
+/// one row of inputs: per output, the correction [N*m] of that joint's inputs.
+pub fn linear_stage_nm(linear: &[f32], row: &[f32]) -> Vec<f32> {
+    let outputs = linear.len() / FRICTION_FEATURES;
+    linear
+        .chunks_exact(FRICTION_FEATURES)
+        .enumerate()
+        .map(|(k, w)| {
+            let w: [f32; FRICTION_FEATURES] = std::array::from_fn(|c| w[c]);
+            features::linear_correction_nm(&w, &features::joint_drive_inputs(row, outputs, k))
+        })
+        .collect()
+}
+
 /// Runs [`firmware::lstm::LstmView::step`] on a host model, keeping the state.
 #[derive(Debug)]
 pub struct Streamer<'a> {
@@ -232,16 +246,11 @@ impl Streamer<'_> {
             .step(&mut h, &mut c, &mut e, &mut hs, input, &mut out);
         (self.h, self.c, self.embed, self.h_scratch) = (h, c, e, hs);
         r.map_err(|e| anyhow::anyhow!("firmware LSTM step: {e}"))?;
-        let o = out.len();
-        for (k, (y, w)) in out
+        for (y, c) in out
             .iter_mut()
-            .zip(self.model.linear.chunks_exact(FRICTION_FEATURES))
-            .enumerate()
+            .zip(linear_stage_nm(&self.model.linear, input))
         {
-            // Output k's joint inputs, kind-major as the firmware's predictor lays them out.
-            let x: [f32; DRIVE_INPUTS_PER_JOINT] = std::array::from_fn(|kind| input[kind * o + k]);
-            let w: &[f32; FRICTION_FEATURES] = w.try_into()?;
-            *y += features::linear_correction_nm(w, &x);
+            *y += c;
         }
         Ok(out)
     }

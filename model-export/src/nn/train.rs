@@ -337,15 +337,6 @@ pub fn train(
     Ok((m, h))
 }
 
-/// Output `k`'s joint inputs of a `drive` row (kind-major, as the firmware lays them out).
-fn drive_joint_inputs(
-    row: &[f32],
-    outputs: usize,
-    k: usize,
-) -> [f32; firmware::features::DRIVE_INPUTS_PER_JOINT] {
-    std::array::from_fn(|kind| row[kind * outputs + k])
-}
-
 /// The `drive` preset's linear stage: per output, least squares (f64, column-scaled
 /// SVD) of the target on `firmware::features::friction_features` of that joint's inputs
 /// over every training step; `[O, 16]` row-major, as `LstmModel::linear` holds it.
@@ -356,7 +347,8 @@ pub fn fit_linear_stage(train: &[Sequence], outputs: usize) -> Result<Vec<f32>> 
         let mut y = Vec::new();
         for s in train {
             for (row, t) in s.inputs.iter().zip(&s.targets) {
-                let f = firmware::features::friction_features(&drive_joint_inputs(row, outputs, k));
+                let inputs = firmware::features::joint_drive_inputs(row, outputs, k);
+                let f = firmware::features::friction_features(&inputs);
                 x.push(f.map(f64::from));
                 y.push(f64::from(t[k]));
             }
@@ -368,24 +360,14 @@ pub fn fit_linear_stage(train: &[Sequence], outputs: usize) -> Result<Vec<f32>> 
 
 /// Subtracts the linear stage `w` (from [`fit_linear_stage`]) from every target, so the
 /// network learns what the linear stage leaves.
-pub fn subtract_linear_stage(w: &[f32], seqs: &mut [Sequence]) -> Result<()> {
+pub fn subtract_linear_stage(w: &[f32], seqs: &mut [Sequence]) {
     for s in seqs {
         for (row, t) in s.inputs.iter().zip(s.targets.iter_mut()) {
-            let outputs = t.len();
-            for (k, (y, c)) in t
-                .iter_mut()
-                .zip(w.chunks_exact(firmware::features::FRICTION_FEATURES))
-                .enumerate()
-            {
-                let c: &[f32; firmware::features::FRICTION_FEATURES] = c.try_into()?;
-                *y -= firmware::features::linear_correction_nm(
-                    c,
-                    &drive_joint_inputs(row, outputs, k),
-                );
+            for (y, c) in t.iter_mut().zip(super::model::linear_stage_nm(w, row)) {
+                *y -= c;
             }
         }
     }
-    Ok(())
 }
 
 /// Do-no-harm shrinkage of a residual network (targets whose model-only prediction is
