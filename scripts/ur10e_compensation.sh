@@ -113,7 +113,7 @@ for spec in "${all_nets[@]}"; do
   nets_run+=("$name")
   echo "== $name: preset $preset on $dir/"
   # The drive-side compensator is what each joint's drive runs: one small network per
-  # joint on that joint's own features (6 -> 16 -> LSTM 16 -> 1, the per-joint budget).
+  # joint on that joint's own features (10 -> 16 -> LSTM 16 -> 1, the per-joint budget).
   if [ "$preset" = drive ]; then
     groups=(${joints//,/ })
     size=(--embed 16 --hidden 16 --patience 15)

@@ -232,14 +232,16 @@ pub fn dynamics_output(
 /// Cases of the `features` suite.
 pub const FEATURE_CASES: usize = 500;
 
-/// Values per case of the `features` suite: the friction features and the linear
-/// correction.
-pub const FEATURE_VALUES: usize = crate::features::FRICTION_FEATURES + 1;
+/// Values per case of the `features` suite: the friction features, the linear
+/// correction and the presliding states after a walk of angles.
+pub const FEATURE_VALUES: usize =
+    crate::features::FRICTION_FEATURES + 1 + crate::features::PRESLIDING_ELEMENTS;
 
 /// The `features` suite's case: `drive_inputs` of q in [-2π, 2π), qd in [-2, 2) rad/s
 /// (every fourth case inside the rest band), qdd in [-10, 10), model torque in
-/// [-100, 100) N*m, rest direction -1, 0 or +1; the friction features, then the linear
-/// correction with fixed coefficients.
+/// [-100, 100) N*m, rest direction -1, 0 or +1, presliding states in [-1, 1); the
+/// friction features, then the linear correction with fixed coefficients, then the
+/// presliding states after eight steps of up to +-20 mrad from q.
 pub fn feature_output(case: usize) -> [f32; FEATURE_VALUES] {
     let seed = 0x0FEA_0000u32 ^ (case as u32).wrapping_mul(5);
     let r = |k: u32| 2.0 * unit(hash(seed + k)) - 1.0;
@@ -253,15 +255,26 @@ pub fn feature_output(case: usize) -> [f32; FEATURE_VALUES] {
         band * r(1),
         10.0 * r(2),
         100.0 * r(3),
-        (case % 3) as f32 - 1.0,
+        (
+            (case % 3) as f32 - 1.0,
+            core::array::from_fn(|k| r(4 + k as u32)),
+        ),
     );
     let coefficients: [f32; crate::features::FRICTION_FEATURES] =
-        core::array::from_fn(|k| 0.5 * r(10 + k as u32));
+        core::array::from_fn(|k| 0.5 * r(40 + k as u32));
     let f = crate::features::friction_features(&x);
     let mut out = [0.0; FEATURE_VALUES];
     out[..crate::features::FRICTION_FEATURES].copy_from_slice(&f);
     out[crate::features::FRICTION_FEATURES] =
         crate::features::linear_correction_nm(&coefficients, &x);
+    let mut presliding = crate::features::Presliding::new();
+    let mut q = 2.0 * core::f32::consts::TAU * r(0);
+    let mut state = presliding.update(q);
+    for k in 0..8 {
+        q += 0.02 * r(60 + k);
+        state = presliding.update(q);
+    }
+    out[crate::features::FRICTION_FEATURES + 1..].copy_from_slice(&state);
     out
 }
 

@@ -109,7 +109,8 @@ pub fn host_dynamics() -> Vec<Record> {
 }
 
 /// The host's computation of the `features` suite (`firmware::features`: the drive's
-/// friction features and linear correction), function `f<k>`, index and input = the case.
+/// friction features, linear correction and presliding states), function `f<k>`, index
+/// and input = the case.
 pub fn host_features() -> Vec<Record> {
     let mut out = Vec::with_capacity(golden::FEATURE_CASES * golden::FEATURE_VALUES);
     for case in 0..golden::FEATURE_CASES {

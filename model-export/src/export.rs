@@ -914,17 +914,22 @@ pub fn render(
          /// `features::FRICTION_FEATURE_NAMES` (zero for other presets)."
     );
     let f = firmware::features::FRICTION_FEATURES;
-    let rows: Vec<Vec<f32>> = (0..m.dims.output)
-        .map(|k| {
-            m.linear
-                .get(k * f..(k + 1) * f)
-                .map_or_else(|| vec![0.0; f], <[f32]>::to_vec)
-        })
-        .collect();
+    // Without a linear stage the file does not depend on the number of features.
+    let stage = if m.linear.iter().all(|&x| x == 0.0) {
+        "[[0.0; crate::features::FRICTION_FEATURES]; OUTPUTS]".to_string()
+    } else {
+        let rows: Vec<Vec<f32>> = (0..m.dims.output)
+            .map(|k| {
+                m.linear
+                    .get(k * f..(k + 1) * f)
+                    .map_or_else(|| vec![0.0; f], <[f32]>::to_vec)
+            })
+            .collect();
+        list(&rows, |r| list(r, |x| f32_lit(*x)))
+    };
     let _ = writeln!(
         s,
-        "pub static LINEAR_STAGE: [[f32; crate::features::FRICTION_FEATURES]; OUTPUTS] = {};",
-        list(&rows, |r| list(r, |x| f32_lit(*x)))
+        "pub static LINEAR_STAGE: [[f32; crate::features::FRICTION_FEATURES]; OUTPUTS] = {stage};"
     );
     let _ = writeln!(s, "/// Input feature names, in input order.");
     let _ = writeln!(

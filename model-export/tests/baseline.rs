@@ -1,5 +1,5 @@
 //! The friction-feature least-squares baseline: coefficient recovery on synthetic
-//! datasets (with and without the `qdd` / `rest_dir` columns), bad input, and the
+//! datasets (with and without the `qdd`, `rest_dir` and presliding columns), bad input, and the
 //! `evaluate --baseline-data` wiring.
 use firmware::lstm::LstmDims;
 use model_export::nn::baseline::{self, FEATURE_NAMES, N_FEATURES};
@@ -35,11 +35,46 @@ fn truth(joint: usize) -> [f64; N_FEATURES] {
         0.2,
         0.6 / s,
         0.04 * s,
+        -0.03 * s,
+        0.05,
+        0.1 / s,
+        0.9,
+        -0.5 * s,
+        0.3,
+        -0.2,
+        0.02 * s,
+        -0.04,
+        0.06 / s,
+        0.015 * s,
     ]
 }
 
+/// Presliding (Maxwell-slip) states over a sequence of angles [rad], written out from
+/// their definition: spans of 1, 3, 10 and 30 mrad, saturating at +-1.
+fn presliding(q: &[f32]) -> Vec<[f64; 4]> {
+    let spans = [0.001, 0.003, 0.01, 0.03];
+    let mut s = [0.0f64; 4];
+    let mut last = q[0] as f64;
+    q.iter()
+        .map(|&x| {
+            let dq = x as f64 - last;
+            last = x as f64;
+            for (e, span) in s.iter_mut().zip(spans) {
+                *e = (*e + dq / span).clamp(-1.0, 1.0);
+            }
+            s
+        })
+        .collect()
+}
+
 /// The features of one row, computed independently of the crate (f32 inputs, f64 math).
-fn row_features(q: f32, qd: f32, qdd: f64, tau_model: f32, rest: f64) -> [f64; N_FEATURES] {
+fn row_features(
+    q: f32,
+    qd: f32,
+    qdd: f64,
+    tau_model: f32,
+    (rest, slip): (f64, [f64; 4]),
+) -> [f64; N_FEATURES] {
     let (q, v, m) = (q as f64, qd as f64, tau_model as f64);
     let sgn = if v > 0.0 {
         1.0
@@ -65,13 +100,25 @@ fn row_features(q: f32, qd: f32, qdd: f64, tau_model: f32, rest: f64) -> [f64; N
         (2.0 * q).cos(),
         rest,
         m.abs() * (v / 0.05).tanh(),
+        m * (v / 0.05).tanh(),
+        m.abs() * (v / 0.2).tanh(),
+        m.abs(),
+        slip[0],
+        slip[1],
+        slip[2],
+        slip[3],
+        m.abs() * slip[0],
+        m.abs() * slip[1],
+        m.abs() * slip[2],
+        m.abs() * slip[3],
     ]
 }
 
 /// Writes a synthetic dataset of `n` rows: random states (speeds over four decades, a
 /// fifth of the rows at rest), `tau_meas = tau_model + truth · features + noise`. With
-/// `full`, the `qdd` and `rest_dir` columns are written; without, the baseline must
-/// compute them (central differences over `time_s`, the last motion's direction).
+/// `full`, the `qdd`, `rest_dir` and presliding columns are written (random); without,
+/// the baseline must compute them (central differences over `time_s`, the last motion's
+/// direction, the presliding states of the angles).
 fn write_dataset(path: &Path, n: usize, seed: u64, full: bool, noise_nm: f64) {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let noise = Normal::new(0.0, noise_nm.max(1e-300)).unwrap();
@@ -95,6 +142,9 @@ fn write_dataset(path: &Path, n: usize, seed: u64, full: bool, noise_nm: f64) {
         let qdd_col: Vec<f32> = (0..n).map(|_| rng.gen_range(-4.0f32..4.0)).collect();
         let rest_col: Vec<f32> = (0..n).map(|_| rng.gen_range(-1i32..=1) as f32).collect();
         let model: Vec<f32> = (0..n).map(|_| rng.gen_range(-3.0f32..3.0)).collect();
+        let slip_cols: Vec<Vec<f32>> = (0..4)
+            .map(|_| (0..n).map(|_| rng.gen_range(-1.0f32..1.0)).collect())
+            .collect();
         // What the baseline sees without the columns.
         let qdd: Vec<f64> = if full {
             qdd_col.iter().map(|&v| v as f64).collect()
@@ -121,10 +171,17 @@ fn write_dataset(path: &Path, n: usize, seed: u64, full: bool, noise_nm: f64) {
                 })
                 .collect()
         };
+        let slip: Vec<[f64; 4]> = if full {
+            (0..n)
+                .map(|k| std::array::from_fn(|e| slip_cols[e][k] as f64))
+                .collect()
+        } else {
+            presliding(&q)
+        };
         let c = truth(j);
         let tau: Vec<f32> = (0..n)
             .map(|k| {
-                let f = row_features(q[k], qd[k], qdd[k], model[k], rest[k]);
+                let f = row_features(q[k], qd[k], qdd[k], model[k], (rest[k], slip[k]));
                 let extra: f64 = c.iter().zip(&f).map(|(a, b)| a * b).sum();
                 let e = if noise_nm > 0.0 {
                     noise.sample(&mut rng)
@@ -135,9 +192,9 @@ fn write_dataset(path: &Path, n: usize, seed: u64, full: bool, noise_nm: f64) {
             })
             .collect();
         meas.push((format!("tau_meas_j{j}"), tau));
-        per_joint.push((j, q, qd, model, qdd_col, rest_col));
+        per_joint.push((j, q, qd, model, qdd_col, rest_col, slip_cols));
     }
-    for (j, q, qd, model, qdd_col, rest_col) in per_joint {
+    for (j, q, qd, model, qdd_col, rest_col, slip_cols) in per_joint {
         names.extend(["q", "qd", "tau_model"].map(|k| format!("{k}_j{j}")));
         cols.extend([q.clone(), qd, model]);
         if full {
@@ -148,6 +205,11 @@ fn write_dataset(path: &Path, n: usize, seed: u64, full: bool, noise_nm: f64) {
                 q.iter().map(|v| v.cos()).collect(),
                 rest_col,
             ]);
+            names.extend(
+                ["slip_1mrad", "slip_3mrad", "slip_10mrad", "slip_30mrad"]
+                    .map(|k| format!("{k}_j{j}")),
+            );
+            cols.extend(slip_cols);
         }
     }
     for (name, tau) in meas {
@@ -289,7 +351,8 @@ fn a_missing_column_names_the_file_and_the_column() {
         c.truncate(N_FEATURES - 1);
     }
     let e = format!("{:#}", baseline::fit(&[short], &JOINTS).unwrap_err());
-    assert!(e.contains("15 training samples"), "{e}");
+    let want = format!("{} training samples", N_FEATURES - 1);
+    assert!(e.contains(&want), "{e}");
 }
 
 /// A feedforward model for joints 1 and 3 (untrained: only the baseline column matters).

@@ -1,6 +1,7 @@
 //! `model-export export`: the committed golden model files are what the exporter
 //! writes today (deterministic, in sync); quantised outputs track f32; bad input is
 //! refused with a clear error and leaves no file behind.
+use firmware::features::DRIVE_INPUTS_PER_JOINT;
 use firmware::lstm::LstmDims;
 use model_export::export::{self, ExportError, Exported, Precision, cli::ExportArgs};
 use model_export::nn::model::LstmModel;
@@ -201,12 +202,12 @@ fn a_model_over_the_flash_budget_is_refused_and_writes_nothing() {
     assert!(out.exists());
 }
 
-/// A `drive` network for joint 4 (6 inputs), and a validation run on which the model
-/// alone is exact: any non-zero correction makes the network worse.
+/// A `drive` network for joint 4, and a validation run on which the model alone is
+/// exact: any non-zero correction makes the network worse.
 fn gate_case(dir: &Path) -> (LstmModel, PathBuf) {
     let mut m = LstmModel::init(
         LstmDims {
-            input: 6,
+            input: DRIVE_INPUTS_PER_JOINT,
             embed: 4,
             hidden: 4,
             output: 1,
@@ -231,8 +232,8 @@ fn gate_case(dir: &Path) -> (LstmModel, PathBuf) {
         let t = k as f64 * 0.01;
         let (q, qd) = ((0.7 * t).sin(), 0.7 * (0.7 * t).cos());
         let tau = 2.0 * q.sin() + 0.3 * qd;
-        // tau_meas, sin q, cos q, qd, qdd, tau_model, rest_dir
-        csv += &format!("{t},{tau},{},{},{qd},0,{tau},0\n", q.sin(), q.cos());
+        // tau_meas, sin q, cos q, qd, qdd, tau_model, rest_dir, presliding states
+        csv += &format!("{t},{tau},{},{},{qd},0,{tau},0,0,0,0,0\n", q.sin(), q.cos());
     }
     std::fs::write(&run, csv).unwrap();
     (m, run)
@@ -244,7 +245,7 @@ fn the_do_no_harm_gate_refuses_a_network_worse_than_the_model() {
     let out = dir.path().join("model.rs");
     let (mut m, run) = gate_case(dir.path());
     let mut a = args(out.clone(), Precision::Int16);
-    a.dims = vec![6, 4, 4, 1];
+    a.dims = vec![DRIVE_INPUTS_PER_JOINT, 4, 4, 1];
     a.preset = "drive".into();
     a.joints = vec![4];
     a.model = Some(dir.path().join("trained.safetensors"));

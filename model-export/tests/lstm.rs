@@ -338,7 +338,9 @@ fn presets_align_inputs_and_targets() {
 /// refused.
 #[test]
 fn drive_linear_stage_is_fitted_stored_and_streamed() {
-    use firmware::features::{FRICTION_FEATURES, friction_features};
+    use firmware::features::{
+        DRIVE_INPUTS_PER_JOINT as PER_JOINT, FRICTION_FEATURES, friction_features,
+    };
     use model_export::nn::{io, train};
     let joints = [4, 5];
     let spec = FeatureSpec::drive(&joints);
@@ -347,12 +349,12 @@ fn drive_linear_stage_is_fitted_stored_and_streamed() {
         .collect();
     let mut seq = Sequence::default();
     for t in 0..400 {
-        let x: Vec<f32> = (0..12)
+        let x: Vec<f32> = (0..2 * PER_JOINT)
             .map(|i| ((t * (i + 3)) as f32 * 0.013).sin() * (1.0 + i as f32 * 0.3))
             .collect();
         let y: Vec<f32> = (0..2)
             .map(|k| {
-                let xk: [f32; 6] = std::array::from_fn(|kind| x[kind * 2 + k]);
+                let xk: [f32; PER_JOINT] = std::array::from_fn(|kind| x[kind * 2 + k]);
                 let f = friction_features(&xk);
                 (0..FRICTION_FEATURES)
                     .map(|c| truth[k * FRICTION_FEATURES + c] * f[c])
@@ -380,7 +382,7 @@ fn drive_linear_stage_is_fitted_stored_and_streamed() {
 
     let mut m = LstmModel::init(
         firmware::lstm::LstmDims {
-            input: 12,
+            input: 2 * PER_JOINT,
             embed: 4,
             hidden: 4,
             output: 2,

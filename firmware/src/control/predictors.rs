@@ -13,7 +13,7 @@
 
 use super::compensator::{PredictorInput, TorquePredictor};
 use crate::dynamics::RigidBodyModel;
-use crate::features::{self, DRIVE_INPUTS_PER_JOINT, FRICTION_FEATURES, RestDirection};
+use crate::features::{self, DRIVE_INPUTS_PER_JOINT, FRICTION_FEATURES, MotionMemory};
 use crate::math;
 use crate::model::FeaturePreset;
 use crate::quant::{F32Lstm, F32State, QuantFormat, QuantLstm, QuantState};
@@ -145,7 +145,7 @@ pub struct LstmPredictor<N: TorqueNetwork<I, J>, const J: usize, const I: usize>
     state: N::State,
     preset: FeaturePreset,
     previous: Option<([f32; J], [f32; J])>,
-    rest: [RestDirection; J],
+    motion: [MotionMemory; J],
     linear: [[f32; FRICTION_FEATURES]; J],
 }
 
@@ -162,7 +162,7 @@ impl<N: TorqueNetwork<I, J>, const J: usize, const I: usize> LstmPredictor<N, J,
             state,
             preset,
             previous: None,
-            rest: [RestDirection::new(); J],
+            motion: [MotionMemory::new(); J],
             linear: [[0.0; FRICTION_FEATURES]; J],
         })
     }
@@ -190,13 +190,13 @@ impl<N: TorqueNetwork<I, J>, const J: usize, const I: usize> TorquePredictor<J>
         let mut x = [0.0f32; I];
         let mut linear_nm = [0.0f32; J];
         if self.preset == FeaturePreset::Drive {
-            for (j, (s, rest)) in input.joints.iter().zip(self.rest.iter_mut()).enumerate() {
+            for (j, (s, motion)) in input.joints.iter().zip(self.motion.iter_mut()).enumerate() {
                 let f = features::drive_inputs(
                     s.q_ref_rad,
                     s.qd_ref_rad_s,
                     s.qdd_ref_rad_s2,
                     input.model_nm[j],
-                    rest.update(s.qd_ref_rad_s),
+                    motion.update(s.q_ref_rad, s.qd_ref_rad_s),
                 );
                 for (kind, v) in f.iter().enumerate().take(DRIVE_INPUTS_PER_JOINT) {
                     if let Some(slot) = x.get_mut(kind * J + j) {
@@ -230,7 +230,7 @@ impl<N: TorqueNetwork<I, J>, const J: usize, const I: usize> TorquePredictor<J>
     fn reset(&mut self) {
         self.state = self.network.zero_state();
         self.previous = None;
-        self.rest = [RestDirection::new(); J];
+        self.motion = [MotionMemory::new(); J];
     }
 }
 
@@ -308,22 +308,23 @@ mod tests {
     /// A network that returns its `pick`-th input (the drive stage's layout check).
     struct Pick(usize);
 
-    impl TorqueNetwork<6, 1> for Pick {
+    impl<const I: usize> TorqueNetwork<I, 1> for Pick {
         type State = ();
         fn zero_state(&self) {}
-        fn step(&self, _: &mut (), x: &[f32; 6]) -> [f32; 1] {
+        fn step(&self, _: &mut (), x: &[f32; I]) -> [f32; 1] {
             [x[self.0]]
         }
     }
 
     #[test]
     fn drive_stage_feeds_the_drive_features_and_adds_the_residual() {
-        // Moving, then at rest after moving backwards: the rest direction is -1.
+        // Moving, then at rest after moving backwards: the rest direction is -1, and
+        // 0.2 rad backwards saturates every presliding element at -1.
         let ticks = [(0.4f32, -0.3f32, 2.0f32, 5.0f32), (0.2, 0.0, 0.0, 4.0)];
         let (s, c) = math::sin_cos(0.2);
-        let want = [s, c, 0.0, 0.0, 4.0, -1.0];
+        let want = [s, c, 0.0, 0.0, 4.0, -1.0, -1.0, -1.0, -1.0, -1.0];
         for (pick, w) in want.iter().enumerate() {
-            let mut p = LstmPredictor::<_, 1, 6>::new(Pick(pick), FeaturePreset::Drive).unwrap();
+            let mut p = LstmPredictor::<_, 1, 10>::new(Pick(pick), FeaturePreset::Drive).unwrap();
             let mut y = [0.0];
             for &(q, qd, qdd, m) in &ticks {
                 let mut input = input1(q, qd, 9.0, m);
@@ -335,7 +336,7 @@ mod tests {
         // The linear stage adds its correction of the same inputs.
         let mut w = [[0.0; FRICTION_FEATURES]; 1];
         (w[0][0], w[0][4]) = (0.25, 3.0);
-        let mut p = LstmPredictor::<_, 1, 6>::new(Pick(5), FeaturePreset::Drive)
+        let mut p = LstmPredictor::<_, 1, 10>::new(Pick(5), FeaturePreset::Drive)
             .unwrap()
             .with_linear_stage(w);
         let y = p.predict_nm(&input1(0.2, 0.5, 9.0, 4.0));

@@ -36,9 +36,9 @@
 //! the paper's 9 -> 64 -> LSTM 64 -> 3 and the per-joint 3 -> 16 -> LSTM 16 -> 1,
 //! seeded random weights).
 
-/// Layout and numerics version of generated model files this firmware reads (4: the
-/// extended friction basis in the dynamics model, the `drive` preset).
-pub const SCHEMA_VERSION: u32 = 4;
+/// Layout and numerics version of generated model files this firmware reads (5: the
+/// `drive` preset's presliding inputs and load-dependent friction features).
+pub const SCHEMA_VERSION: u32 = 5;
 
 /// Index in a compiled-in dynamics model of each compensated joint: the robot joint
 /// indices when the dynamics cover the whole arm, else (the other joints locked away at
@@ -77,7 +77,7 @@ pub enum FeaturePreset {
     Paper,
     /// Per joint: model torque, position, velocity (3 per joint) -> residual.
     Feedforward,
-    /// Per joint: `crate::features::DRIVE_COLUMNS` (6 per joint) -> residual.
+    /// Per joint: `crate::features::DRIVE_COLUMNS` (10 per joint) -> residual.
     Drive,
     /// Other columns (no layout check beyond the sizes).
     Custom,

@@ -692,6 +692,11 @@ fn named_torque_csv(robot: &Robot, joints: &[usize], s: &Samples, pred: &[Vec<f6
     out
 }
 
+/// The `drive` inputs (`firmware::features::DRIVE_COLUMNS` indices) that a compensation
+/// dataset stores beside q, qd, qdd and the torques: sin q, cos q, the rest direction and
+/// the presliding states.
+const DERIVED_COLUMNS: [usize; 7] = [0, 1, 5, 6, 7, 8, 9];
+
 /// `torque --dataset`: the compensation dataset (`nn::data` column names).
 fn compensation_dataset_csv(
     log: &Path,
@@ -706,16 +711,10 @@ fn compensation_dataset_csv(
         );
     };
     let mut out = String::from("time_s");
-    for kind in [
-        "q",
-        "qd",
-        "tau_meas",
-        "tau_model",
-        "qdd",
-        "sin_q",
-        "cos_q",
-        "rest_dir",
-    ] {
+    for kind in ["q", "qd", "tau_meas", "tau_model", "qdd"]
+        .into_iter()
+        .chain(DERIVED_COLUMNS.map(|c| features::DRIVE_COLUMNS[c]))
+    {
         for &j in joints {
             out.push_str(&format!(",{kind}_j{}", j + 1));
         }
@@ -723,7 +722,7 @@ fn compensation_dataset_csv(
     out.push('\n');
     // The drive's own feature functions, on the values as the dataset stores them.
     let stored = |x: f64| format!("{x:.6}").parse::<f32>().unwrap_or(f32::NAN);
-    let mut rest = vec![features::RestDirection::new(); joints.len()];
+    let mut motion = vec![features::MotionMemory::new(); joints.len()];
     for k in 0..s.len() {
         out.push_str(&format!("{:.6}", s.time_s[k]));
         for series in [&s.q_rad, &s.qd_rad_s, tau] {
@@ -739,13 +738,13 @@ fn compensation_dataset_csv(
         }
         let derived: Vec<[f32; features::DRIVE_INPUTS_PER_JOINT]> = joints
             .iter()
-            .zip(rest.iter_mut())
-            .map(|(&j, r)| {
-                let qd = stored(s.qd_rad_s[j][k]);
-                features::drive_inputs(stored(s.q_rad[j][k]), qd, 0.0, 0.0, r.update(qd))
+            .zip(motion.iter_mut())
+            .map(|(&j, m)| {
+                let (q, qd) = (stored(s.q_rad[j][k]), stored(s.qd_rad_s[j][k]));
+                features::drive_inputs(q, qd, 0.0, 0.0, m.update(q, qd))
             })
             .collect();
-        for col in [0, 1, 5] {
+        for col in DERIVED_COLUMNS {
             for x in &derived {
                 out.push_str(&format!(",{}", x[col]));
             }

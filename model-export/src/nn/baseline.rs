@@ -5,9 +5,9 @@
 //!
 //! Columns read per joint N: `tau_meas_jN` (fit only), `tau_model_jN` [N·m], `q_jN`
 //! [rad], `qd_jN` [rad/s]; `qdd_jN` [rad/s²] when present, else central differences of
-//! `qd_jN` over `time_s` [s]; `rest_dir_jN` (-1/0/+1) when present, else computed here
-//! (the direction of the last motion with |qd| > `firmware::features::REST_BAND_RAD_S`,
-//! held while at rest, 0 while moving). The features are the drive's own
+//! `qd_jN` over `time_s` [s]; `rest_dir_jN` (-1/0/+1) and the presliding states
+//! `slip_*_jN` when present, else computed here from `q_jN` and `qd_jN`
+//! (`firmware::features::MotionMemory`). The features are the drive's own
 //! (`firmware::features::friction_features`), which the `drive` preset's linear stage
 //! evaluates too.
 use super::data::Table;
@@ -39,13 +39,17 @@ pub struct LinearBaseline {
     pub samples: usize,
 }
 
-/// The direction of the last motion while at rest, from velocities [rad/s] (-1/0/+1):
-/// `firmware::features::RestDirection` over the sequence.
-pub fn rest_direction(qd_rad_s: &[f32]) -> Vec<f64> {
-    let mut rest = features::RestDirection::new();
-    qd_rad_s
+/// The rest direction (-1/0/+1) and presliding states of a sequence of angles [rad] and
+/// velocities [rad/s]: `firmware::features::MotionMemory` over the sequence.
+pub fn motion_memory(
+    q_rad: &[f32],
+    qd_rad_s: &[f32],
+) -> Vec<(f32, [f32; features::PRESLIDING_ELEMENTS])> {
+    let mut memory = features::MotionMemory::new();
+    q_rad
         .iter()
-        .map(|&v| f64::from(rest.update(v)))
+        .zip(qd_rad_s)
+        .map(|(&q, &qd)| memory.update(q, qd))
         .collect()
 }
 
@@ -93,12 +97,24 @@ pub fn features(table: &Table, joint: usize) -> Result<Vec<[f64; N_FEATURES]>> {
         Some(v) => v,
         None => central_differences(table, qd, &name("qd"))?,
     };
-    let rest = stored("rest_dir")?.unwrap_or_else(|| rest_direction(qd));
+    // The stored rest direction and presliding states, else computed here.
+    let mut memory = motion_memory(q, qd);
+    if let Some(rest) = stored(features::DRIVE_COLUMNS[5])? {
+        for (m, r) in memory.iter_mut().zip(rest) {
+            m.0 = r as f32;
+        }
+    }
+    for (e, &column) in features::DRIVE_COLUMNS[6..].iter().enumerate() {
+        if let Some(slip) = stored(column)? {
+            for (m, p) in memory.iter_mut().zip(slip) {
+                m.1[e] = p as f32;
+            }
+        }
+    }
     // The drive's own feature function (f32), as the `drive` preset's linear stage.
     let rows: Vec<[f64; N_FEATURES]> = (0..table.len())
         .map(|k| {
-            let x =
-                features::drive_inputs(q[k], qd[k], qdd[k] as f32, tau_model[k], rest[k] as f32);
+            let x = features::drive_inputs(q[k], qd[k], qdd[k] as f32, tau_model[k], memory[k]);
             features::friction_features(&x).map(f64::from)
         })
         .collect();
@@ -226,12 +242,15 @@ mod tests {
     }
 
     #[test]
-    fn rest_direction_holds_the_last_motion_at_rest_only() {
+    fn motion_memory_holds_the_last_motion_and_the_presliding_states() {
         let qd = [0.0, 0.3, 0.001, 0.0, -0.2, -0.004, 0.0, 0.01];
-        assert_eq!(
-            rest_direction(&qd),
-            [0.0, 0.0, 1.0, 1.0, 0.0, -1.0, -1.0, 0.0]
-        );
+        let q = [0.0, 0.05, 0.05, 0.05, 0.049, 0.049, 0.049, 0.1];
+        let m = motion_memory(&q, &qd);
+        let rest: Vec<f32> = m.iter().map(|x| x.0).collect();
+        assert_eq!(rest, [0.0, 0.0, 1.0, 1.0, 0.0, -1.0, -1.0, 0.0]);
+        // 50 mrad forward saturates every element; 1 mrad back sweeps the 1 mrad one.
+        assert_eq!(m[1].1, [1.0; 4]);
+        assert!(m[4].1[0] < -0.99 && (m[4].1[2] - 0.8).abs() < 1e-3);
     }
 
     #[test]
