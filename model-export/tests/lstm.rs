@@ -115,6 +115,40 @@ fn a_pytorch_model_imports_and_matches_its_reference() {
     }
 }
 
+#[test]
+fn a_pytorch_model_with_a_linear_input_layer_imports_and_matches_its_reference() {
+    use firmware::lstm::InputActivation;
+    let path = fixtures().join("torch_linear.safetensors");
+    let m = io::read_model(&path).unwrap();
+    assert_eq!(m.input_activation, InputActivation::Linear);
+    let err =
+        model_export::cli::check_reference(&m, &fixtures().join("torch_linear_reference.csv"))
+            .unwrap();
+    println!(
+        "linear input layer: firmware f32 step vs PyTorch: max error {err:.2e} of the output RMS"
+    );
+    assert!(err < 1e-5, "{err}");
+    // Run as tanh, the same weights are far off: the activation is what was imported.
+    let mut as_tanh = m.clone();
+    as_tanh.input_activation = InputActivation::Tanh;
+    let wrong = model_export::cli::check_reference(
+        &as_tanh,
+        &fixtures().join("torch_linear_reference.csv"),
+    )
+    .unwrap();
+    println!("the same weights run with tanh: max error {wrong:.2e} of the output RMS");
+    assert!(wrong > 1e-2, "{wrong}");
+    // Our writer keeps the activation; the caller's word must agree with the metadata.
+    let again = io::parse_model(&io::model_bytes(&m).unwrap()).unwrap();
+    assert_eq!(again, m);
+    assert!(io::read_model_with(&path, Some("linear")).is_ok());
+    let e = format!(
+        "{:#}",
+        io::read_model_with(&path, Some("tanh")).unwrap_err()
+    );
+    assert!(e.contains("disagrees"), "{e}");
+}
+
 fn edit_fixture(edit: impl Fn(&mut LstmModel)) -> Vec<u8> {
     let mut m = io::read_model(&fixtures().join("torch_lstm.safetensors")).unwrap();
     edit(&mut m);
@@ -473,6 +507,7 @@ fn torch_style_file(
 
 #[test]
 fn pytorch_files_that_would_import_wrongly_are_refused_naming_why() {
+    use firmware::lstm::InputActivation;
     let dir = tempfile::tempdir().unwrap();
     let m = LstmModel::init(
         LstmDims {
@@ -487,13 +522,15 @@ fn pytorch_files_that_would_import_wrongly_are_refused_naming_why() {
     let bare = torch_style_file(dir.path(), &m, &[], &[]);
     let e = format!("{:#}", io::read_model(&bare).unwrap_err());
     assert!(e.contains("--input-activation"), "{e}");
-    let e = format!(
-        "{:#}",
-        io::read_model_with(&bare, Some("linear")).unwrap_err()
-    );
-    assert!(e.contains("linear") && e.contains("not supported"), "{e}");
     let ok = io::read_model_with(&bare, Some("tanh")).expect("said tanh");
     assert_eq!(ok.w_ih, m.w_ih);
+    assert_eq!(ok.input_activation, InputActivation::Tanh);
+    let linear = io::read_model_with(&bare, Some("linear")).expect("said linear");
+    assert_eq!(linear.input_activation, InputActivation::Linear);
+    // An activation the firmware does not run is named.
+    let relu = torch_style_file(dir.path(), &m, &[], &[("input_activation", "relu")]);
+    let e = format!("{:#}", io::read_model(&relu).unwrap_err());
+    assert!(e.contains("relu") && e.contains("not supported"), "{e}");
     // A 2-layer nn.LSTM: the second layer's tensors are named, not dropped.
     let h4 = 4 * 5;
     let extra = [

@@ -69,6 +69,14 @@ pub fn tanh_q15(acc: i32, shift: u32) -> i16 {
     lookup(TANH, acc, shift)
 }
 
+/// The identity of an accumulator, requantised: `sat16(acc >> shift)` (one `SSAT #16`
+/// with the shift; the linear input layer's `e`, rounded to nearest by the half-step the
+/// exporter adds to its bias).
+#[inline(always)]
+pub fn linear_i16(acc: i32, shift: u32) -> i16 {
+    (acc >> (shift & 31)).clamp(i16::MIN as i32, i16::MAX as i32) as i16
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
