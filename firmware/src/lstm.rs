@@ -427,13 +427,19 @@ mod tests {
 
     #[test]
     fn matches_a_hand_computed_single_cell() {
+        for activation in [InputActivation::Tanh, InputActivation::Linear] {
+            single_cell(activation);
+        }
+    }
+
+    fn single_cell(activation: InputActivation) {
         // I = E = H = O = 1: every formula written out by hand.
         let net = Lstm::<1, 1, 1, 1> {
             input_mean: [1.0],
             input_std: [2.0],
             w_in: [[0.5]],
             b_in: [0.1],
-            input_activation: InputActivation::Tanh,
+            input_activation: activation,
             w_ih: [[[0.3]], [[-0.2]], [[0.7]], [[0.4]]],
             w_hh: [[[0.1]], [[0.2]], [[-0.3]], [[0.5]]],
             b_gates: [[0.05], [0.6], [-0.1], [0.0]],
@@ -448,7 +454,11 @@ mod tests {
         for t in 0..20 {
             let x = (t as f32 * 0.37).sin() * 3.0;
             let y = net.step(&mut st, &[x])[0];
-            let e = (0.5 * ((x as f64 - 1.0) / 2.0) + 0.1).tanh();
+            let pre = 0.5 * ((x as f64 - 1.0) / 2.0) + 0.1;
+            let e = match activation {
+                InputActivation::Tanh => pre.tanh(),
+                InputActivation::Linear => pre,
+            };
             let i = sig(0.05 + 0.3 * e + 0.1 * h);
             let f = sig(0.6 - 0.2 * e + 0.2 * h);
             let g = (-0.1 + 0.7 * e - 0.3 * h).tanh();
@@ -456,7 +466,10 @@ mod tests {
             c = f * c + i * g;
             h = o * c.tanh();
             let want = (1.5 * h - 0.2) * 0.5 + 3.0;
-            assert!((y as f64 - want).abs() < 1e-6, "t {t}: {y} vs {want}");
+            assert!(
+                (y as f64 - want).abs() < 1e-6,
+                "{activation:?} t {t}: {y} vs {want}"
+            );
         }
     }
 

@@ -81,6 +81,22 @@ pub fn linear_i16(acc: i32, shift: u32) -> i16 {
 mod tests {
     use super::*;
 
+    #[test]
+    fn linear_requantisation_is_a_saturating_floor_shift() {
+        for (acc, shift, want) in [
+            (0x1234_5678, 8, i16::MAX),
+            (-0x1234_5678, 8, i16::MIN),
+            (0x0012_3456, 8, 0x1234),
+            (-0x0012_3456, 8, -0x1235),
+            (-1, 3, -1),
+            (7, 3, 0),
+            (i32::MAX, 31, 0),
+            (i32::MIN, 31, -1),
+        ] {
+            assert_eq!(linear_i16(acc, shift), want, "{acc:#x} >> {shift}");
+        }
+    }
+
     fn sigmoid(x: f64) -> f64 {
         1.0 / (1.0 + (-x).exp())
     }
