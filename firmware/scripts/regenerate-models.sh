@@ -14,3 +14,7 @@ for p in f32 int16 int8; do
   $ME export --dims 9,64,64,3 --seed 2 --precision $p --robot "$ROBOT" --out $D/bench_paper_$p.rs
 done
 $ME export --dims 3,16,16,1 --seed 3 --joints 5 --precision int16 --out $D/bench_joint_int16.rs
+# The PyTorch fixture with a linear input layer (scripts/make_torch_fixture.py).
+for p in f32 int16 int8; do
+  $ME export --model model-export/tests/fixtures/torch_linear.safetensors --joints 1,2 --precision $p --self-check-steps 10000 --allow-worse --out $D/golden_linear_$p.rs
+done

@@ -44,6 +44,9 @@ pub fn visit_all<V: Visitor>(v: &mut V) {
     v.visit::<LstmPaperInt8>();
     v.visit::<LstmJointInt16>();
     v.visit::<Dynamics6F32>();
+    v.visit::<LstmLinearF32>();
+    v.visit::<LstmLinearInt16>();
+    v.visit::<LstmLinearInt8>();
 }
 
 /// Number of registered workloads.
@@ -235,6 +238,19 @@ model_workload!(
 model_workload!(
     /// The per-joint network (3 -> 16 -> LSTM 16 -> 1), int16.
     LstmJointInt16, "lstm_joint_int16", bench_joint_int16
+);
+
+model_workload!(
+    /// A network with a linear input layer (the PyTorch fixture, 5 -> 12 -> LSTM 16 -> 2), f32.
+    LstmLinearF32, "lstm_linear_f32", golden_linear_f32
+);
+model_workload!(
+    /// The same network with a linear input layer, int16 (the fused `dsp::lstm_small_i16`).
+    LstmLinearInt16, "lstm_linear_int16", golden_linear_int16
+);
+model_workload!(
+    /// The same network with a linear input layer, int8 weights.
+    LstmLinearInt8, "lstm_linear_int8", golden_linear_int8
 );
 
 /// The 6-DoF rigid-body model (`dynamics::RigidBodyModel<6>::torques`, f32) with the

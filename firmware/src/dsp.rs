@@ -795,8 +795,9 @@ mod asm {
         };
     }
 
-    /// One input-layer block `b` of [`lstm_small_i16`]: bias, IQ quads, 4 tanh, the
-    /// packed e pair into `$s0, $s1`.
+    /// One input-layer block `b` of [`lstm_small_i16`]: bias, IQ quads, 4 tanh (or,
+    /// for a linear input layer, 4 `SSAT #16` of the shifted sums), the packed e pair
+    /// into `$s0, $s1`.
     macro_rules! small_in_block {
         ($b:literal, $s0:literal, $s1:literal) => {
             concat!(
@@ -810,6 +811,12 @@ mod asm {
                 ".if {iq} > 1\n",
                 small_quad_macs!("s22", "s23"),
                 ".endif\n",
+                ".if {lin}\n",
+                "ssat r0, #16, r0, asr #{si}\n",
+                "ssat r1, #16, r1, asr #{si}\n",
+                "ssat r2, #16, r2, asr #{si}\n",
+                "ssat r3, #16, r3, asr #{si}\n",
+                ".else\n",
                 "vmov r4, s17\n",
                 "ssat r0, #13, r0, asr #{si}\n",
                 "ssat r1, #13, r1, asr #{si}\n",
@@ -819,6 +826,7 @@ mod asm {
                 "ldrsh r1, [r4, r1, lsl #1]\n",
                 "ldrsh r2, [r4, r2, lsl #1]\n",
                 "ldrsh r3, [r4, r3, lsl #1]\n",
+                ".endif\n",
                 "pkhbt r0, r0, r1, lsl #16\n",
                 "pkhbt r2, r2, r3, lsl #16\n",
                 "vmov ",
@@ -969,6 +977,7 @@ mod asm {
                 h1 = const 2 * ZQ - 1,
                 c_off = const 8 * ZQ,
                 si = const F::INPUT_SHIFT,
+                lin = const F::INPUT_ACTIVATION.is_linear() as u32,
                 s0 = const F::GATE_SHIFTS[0],
                 s1 = const F::GATE_SHIFTS[1],
                 s2 = const F::GATE_SHIFTS[2],

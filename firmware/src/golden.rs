@@ -310,6 +310,7 @@ pub fn lstm_network() -> GoldenLstm {
         input_std: core::array::from_fn(|_| 0.5 + next(0.25)),
         w_in: core::array::from_fn(|_| core::array::from_fn(|_| next(k))),
         b_in: core::array::from_fn(|_| next(0.5)),
+        input_activation: crate::lstm::InputActivation::Tanh,
         w_ih: core::array::from_fn(|_| core::array::from_fn(|_| core::array::from_fn(|_| next(k)))),
         w_hh: core::array::from_fn(|_| core::array::from_fn(|_| core::array::from_fn(|_| next(k)))),
         b_gates: core::array::from_fn(|_| core::array::from_fn(|_| next(0.7))),

@@ -4,7 +4,7 @@
 //!
 //! ```text
 //! x_n = (x - input_mean) / input_std                      normalisation (part of the model)
-//! e   = tanh(W_in x_n + b_in)                             fully connected input layer
+//! e   = act(W_in x_n + b_in)                              fully connected input layer
 //! i   = σ(W_ii e + W_hi h + b_i)                          LSTM, PyTorch gate order i, f, g, o
 //! f   = σ(W_if e + W_hf h + b_f)
 //! g   = tanh(W_ig e + W_hg h + b_g)
@@ -13,11 +13,12 @@
 //! y   = (W_out h' + b_out) ⊙ output_std + output_mean     fully connected output, de-normalised
 //! ```
 //!
-//! **Input-layer activation: `tanh`.** The paper does not name one. A linear input layer
-//! would be absorbed by `W_ih` (it adds parameters but no expressiveness); `tanh` adds a
-//! nonlinearity and bounds the LSTM's input to (-1, 1), the range the fixed-point kernels
-//! of the quantisation issue need for a fixed Q format. A model imported from PyTorch
-//! must use `torch.tanh` after its input `nn.Linear` (see `model-export`'s README).
+//! **Input-layer activation `act`: [`InputActivation`], `tanh` or linear (identity).**
+//! The paper does not name one. The networks trained here use `tanh`: it adds a
+//! nonlinearity and bounds the LSTM's input to (-1, 1), a fixed Q format for the integer
+//! kernels. A linear input layer (a plain PyTorch `nn.Linear`, the most common form) is
+//! run as it is; the integer kernels then give `e` a power-of-two format wide enough for
+//! its range (see `crate::quant`). Each model names its activation.
 //!
 //! The LSTM bias `b` is PyTorch's `bias_ih + bias_hh`, summed once by the exporter.
 //!
@@ -34,6 +35,46 @@
 //! the control loop does that around it.
 
 use crate::math;
+
+/// The activation after the fully connected input layer.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum InputActivation {
+    /// `e = tanh(W_in x_n + b_in)`.
+    Tanh,
+    /// `e = W_in x_n + b_in` (identity: a plain `nn.Linear`).
+    Linear,
+}
+
+impl InputActivation {
+    /// Whether the input layer is linear (usable in constant expressions).
+    pub const fn is_linear(self) -> bool {
+        matches!(self, InputActivation::Linear)
+    }
+
+    /// Name in model files and metadata (`tanh`, `linear`).
+    pub const fn name(self) -> &'static str {
+        match self {
+            InputActivation::Tanh => "tanh",
+            InputActivation::Linear => "linear",
+        }
+    }
+
+    /// The activation of a name ([`Self::name`]).
+    pub fn from_name(name: &str) -> Option<Self> {
+        [InputActivation::Tanh, InputActivation::Linear]
+            .into_iter()
+            .find(|a| a.name() == name)
+    }
+
+    /// Applies the activation to an input-layer sum.
+    #[inline(always)]
+    pub fn apply(self, x: f32) -> f32 {
+        match self {
+            InputActivation::Tanh => math::tanh(x),
+            InputActivation::Linear => x,
+        }
+    }
+}
 
 /// Sizes of a network: inputs, input-layer width, LSTM cells, outputs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -80,6 +121,8 @@ pub struct Lstm<const I: usize, const E: usize, const H: usize, const O: usize> 
     pub w_in: [[f32; I]; E],
     /// Input layer bias.
     pub b_in: [f32; E],
+    /// Activation after the input layer.
+    pub input_activation: InputActivation,
     /// LSTM input weights per gate (i, f, g, o): `[4][H][E]`.
     pub w_ih: [[[f32; E]; H]; 4],
     /// LSTM recurrent weights per gate (i, f, g, o): `[4][H][H]`.
@@ -143,6 +186,7 @@ impl<const I: usize, const E: usize, const H: usize, const O: usize> Lstm<I, E, 
             input_std: &self.input_std,
             w_in: self.w_in.as_flattened(),
             b_in: &self.b_in,
+            input_activation: self.input_activation,
             w_ih: self.w_ih.as_flattened().as_flattened(),
             w_hh: self.w_hh.as_flattened().as_flattened(),
             b_gates: self.b_gates.as_flattened(),
@@ -183,6 +227,8 @@ pub struct LstmView<'a> {
     pub w_in: &'a [f32],
     /// `[E]`
     pub b_in: &'a [f32],
+    /// Activation after the input layer.
+    pub input_activation: InputActivation,
     /// `[4H * E]`
     pub w_ih: &'a [f32],
     /// `[4H * H]`
@@ -295,7 +341,7 @@ impl<'a> LstmView<'a> {
             {
                 acc += w * ((x - m) / s);
             }
-            *e = math::tanh(acc + b);
+            *e = self.input_activation.apply(acc + b);
         }
         // LSTM cell: per cell j, the four gate rows j, H + j, 2H + j, 3H + j.
         let gate_ih = |g: usize, j: usize| &self.w_ih[(g * d.hidden + j) * d.embed..][..d.embed];
@@ -381,12 +427,19 @@ mod tests {
 
     #[test]
     fn matches_a_hand_computed_single_cell() {
+        for activation in [InputActivation::Tanh, InputActivation::Linear] {
+            single_cell(activation);
+        }
+    }
+
+    fn single_cell(activation: InputActivation) {
         // I = E = H = O = 1: every formula written out by hand.
         let net = Lstm::<1, 1, 1, 1> {
             input_mean: [1.0],
             input_std: [2.0],
             w_in: [[0.5]],
             b_in: [0.1],
+            input_activation: activation,
             w_ih: [[[0.3]], [[-0.2]], [[0.7]], [[0.4]]],
             w_hh: [[[0.1]], [[0.2]], [[-0.3]], [[0.5]]],
             b_gates: [[0.05], [0.6], [-0.1], [0.0]],
@@ -401,7 +454,11 @@ mod tests {
         for t in 0..20 {
             let x = (t as f32 * 0.37).sin() * 3.0;
             let y = net.step(&mut st, &[x])[0];
-            let e = (0.5 * ((x as f64 - 1.0) / 2.0) + 0.1).tanh();
+            let pre = 0.5 * ((x as f64 - 1.0) / 2.0) + 0.1;
+            let e = match activation {
+                InputActivation::Tanh => pre.tanh(),
+                InputActivation::Linear => pre,
+            };
             let i = sig(0.05 + 0.3 * e + 0.1 * h);
             let f = sig(0.6 - 0.2 * e + 0.2 * h);
             let g = (-0.1 + 0.7 * e - 0.3 * h).tanh();
@@ -409,7 +466,10 @@ mod tests {
             c = f * c + i * g;
             h = o * c.tanh();
             let want = (1.5 * h - 0.2) * 0.5 + 3.0;
-            assert!((y as f64 - want).abs() < 1e-6, "t {t}: {y} vs {want}");
+            assert!(
+                (y as f64 - want).abs() < 1e-6,
+                "{activation:?} t {t}: {y} vs {want}"
+            );
         }
     }
 

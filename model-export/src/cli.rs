@@ -231,7 +231,8 @@ pub struct ImportArgs {
     #[arg(long, default_value_t = 1e-5)]
     pub tolerance: f64,
     /// The activation after the input layer, for files without `input_activation`
-    /// metadata (`tanh`; `linear` is refused: the firmware's input layer applies tanh).
+    /// metadata (`tanh`, or `linear` for a plain `nn.Linear`); it must agree with the
+    /// metadata where there is some.
     #[arg(long, value_parser = ["tanh", "linear"])]
     pub input_activation: Option<String>,
 }

@@ -11,6 +11,7 @@ use crate::dynamics::firmware_model::FirmwareModel;
 use crate::nn::model::LstmModel;
 use anyhow::{Result, bail};
 use firmware::dynamics::RigidBodyModel;
+use firmware::lstm::InputActivation;
 use firmware::quant::{
     ACT_FRAC_BITS, F32Dims, F32View, I8Weights, I16Weights, INPUT_FRAC_BITS, QuantDims, QuantView,
     WeightFormat, act,
@@ -74,6 +75,16 @@ pub enum ExportError {
         max_bias: f64,
         /// Smallest exponent the index shift allows.
         p_min: i32,
+    },
+    /// A linear input layer's outputs have no int16 format the kernel can shift to.
+    #[error(
+        "layer `input` (linear): its outputs reach {bound:e} for inputs within the Q3.12 \
+         range (+-8 after normalisation), and no int16 format of them has a requantisation \
+         shift in 1..=31 that keeps the accumulator below 2^31; the weights are too large"
+    )]
+    LinearInputRange {
+        /// Largest `|e|` the layer can give.
+        bound: f64,
     },
     /// A standard deviation is not positive.
     #[error("tensor `{tensor}` element {index} is {value}: standard deviations must be > 0")]
@@ -194,7 +205,9 @@ pub struct QuantNet<F: WeightFormat> {
     pub in_w: Vec<F::Quad>,
     /// Input bias.
     pub in_bias: Vec<[i32; 4]>,
-    /// Activation-index shift of the input layer.
+    /// Activation after the input layer.
+    pub in_activation: InputActivation,
+    /// Shift of the input layer's accumulators (tanh index or linear requantisation).
     pub in_shift: u32,
     /// Gates.
     pub gate_w: Vec<F::Quad>,
@@ -285,6 +298,26 @@ fn quant_layer<F: WeightFormat>(
     (w, bias4)
 }
 
+/// Largest `|e|` a linear input layer can give for any Q3.12 input (`|x_n| <= 8`):
+/// `max_r sum_k |w_rk| * 8 + |b_r|`.
+fn linear_embed_bound(rows: &[(&[f64], f64)]) -> f64 {
+    let x_max = 32768.0 / f64::from(1u32 << INPUT_FRAC_BITS);
+    rows.iter()
+        .map(|(w, b)| w.iter().map(|x| x.abs()).sum::<f64>() * x_max + b.abs())
+        .fold(0.0, f64::max)
+}
+
+/// Fraction bits `F` of a linear input layer's `e` (int16, `Q(15-F).F`): the most for
+/// which [`linear_embed_bound`] fits, at most 15.
+fn linear_embed_frac_bits(rows: &[(&[f64], f64)]) -> i32 {
+    let bound = linear_embed_bound(rows);
+    let mut f = ACT_FRAC_BITS as i32;
+    while f > -16 && bound * 2f64.powi(f) >= 32767.0 {
+        f -= 1;
+    }
+    f
+}
+
 /// Index shift of an accumulator with `p + x_frac` fraction bits.
 fn index_shift(p: i32, x_frac: u32) -> u32 {
     (p + x_frac as i32 - act::GRID_FRAC_BITS as i32) as u32
@@ -321,7 +354,7 @@ impl<F: WeightFormat> QuantNet<F> {
         check_finite(m)?;
         let d = m.dims;
         let ip = pad4(d.input);
-        let l = layers(m, ip);
+        let mut l = layers(m, ip);
         let (x_in, x_z) = (INPUT_FRAC_BITS, ACT_FRAC_BITS);
         let in_rows: Vec<(&[f64], f64)> = l
             .input
@@ -331,6 +364,29 @@ impl<F: WeightFormat> QuantNet<F> {
             .map(|(w, b)| (w.as_slice(), *b))
             .collect();
         let p_in = group_exponent("input", &in_rows, x_in, F::MAX_WEIGHT)?;
+        // A linear input layer: e in F fraction bits, the shift to it, and the factor
+        // 2^(15 - F) on the gate weights of the e columns (module docs of firmware::quant).
+        let (in_shift, e_frac) = match m.input_activation {
+            InputActivation::Tanh => (index_shift(p_in, x_in), ACT_FRAC_BITS as i32),
+            InputActivation::Linear => {
+                let e_frac = linear_embed_frac_bits(&in_rows);
+                let shift = p_in + x_in as i32 - e_frac;
+                if !(1..=31).contains(&shift) {
+                    return Err(ExportError::LinearInputRange {
+                        bound: linear_embed_bound(&in_rows),
+                    });
+                }
+                (shift as u32, e_frac)
+            }
+        };
+        let e_gain = 2f64.powi(ACT_FRAC_BITS as i32 - e_frac);
+        if e_gain != 1.0 {
+            for row in l.gates.0.iter_mut() {
+                for w in row[..l.e_pad].iter_mut() {
+                    *w *= e_gain;
+                }
+            }
+        }
         let mut p_gate = [0i32; 4];
         for (g, p) in p_gate.iter_mut().enumerate() {
             let rows: Vec<(&[f64], f64)> = (g..l.gates.0.len())
@@ -339,7 +395,21 @@ impl<F: WeightFormat> QuantNet<F> {
                 .collect();
             *p = group_exponent(GATE_LAYERS[g], &rows, x_z, F::MAX_WEIGHT)?;
         }
-        let (in_w, in_bias) = quant_layer::<F>(&l.input.0, &l.input.1, x_in, [p_in; 4]);
+        let (in_w, mut in_bias) = quant_layer::<F>(&l.input.0, &l.input.1, x_in, [p_in; 4]);
+        if m.input_activation == InputActivation::Linear {
+            // Round to nearest: the half step of the shift in the bias (the kernel's
+            // arithmetic shift floors).
+            let half = 1i64 << (in_shift - 1);
+            let worst = worst_accumulator(&in_rows, p_in, x_in, F::MAX_WEIGHT).unwrap_or(ACC_LIMIT);
+            if worst + half as f64 >= ACC_LIMIT {
+                return Err(ExportError::LinearInputRange {
+                    bound: linear_embed_bound(&in_rows),
+                });
+            }
+            for b in in_bias.iter_mut().flatten() {
+                *b = (*b as i64 + half) as i32;
+            }
+        }
         let (gate_w, gate_bias) = quant_layer::<F>(&l.gates.0, &l.gates.1, x_z, p_gate);
         // Output layer: no integer bias; y = acc * s * 2^-15 * std + (b * std + mean).
         let mut out_w = Vec::new();
@@ -386,7 +456,8 @@ impl<F: WeightFormat> QuantNet<F> {
             input_scale: m.input_std.iter().map(|s| 4096.0 / s).collect(),
             in_w,
             in_bias,
-            in_shift: index_shift(p_in, x_in),
+            in_activation: m.input_activation,
+            in_shift,
             gate_w,
             gate_bias,
             gate_shift: p_gate.map(|p| index_shift(p, x_z)),
@@ -406,6 +477,7 @@ impl<F: WeightFormat> QuantNet<F> {
             input_scale: &self.input_scale,
             in_w: &self.in_w,
             in_bias: &self.in_bias,
+            in_activation: self.in_activation,
             in_shift: self.in_shift,
             gate_w: &self.gate_w,
             gate_bias: &self.gate_bias,
@@ -458,6 +530,8 @@ pub struct F32Net {
     pub w_in: Vec<[f32; 4]>,
     /// Input bias.
     pub b_in: Vec<[f32; 4]>,
+    /// Activation after the input layer.
+    pub input_activation: InputActivation,
     /// Gates.
     pub w_gates: Vec<[f32; 4]>,
     /// Gate bias.
@@ -516,6 +590,7 @@ impl F32Net {
             input_inv_std: m.input_std.iter().map(|s| 1.0 / s).collect(),
             w_in: interleave(&l.input.0),
             b_in: blocks4(&l.input.1),
+            input_activation: m.input_activation,
             w_gates: interleave(&l.gates.0),
             b_gates: blocks4(&l.gates.1),
             w_out: interleave(&l.output.0),
@@ -535,6 +610,7 @@ impl F32Net {
             input_inv_std: &self.input_inv_std,
             w_in: &self.w_in,
             b_in: &self.b_in,
+            input_activation: self.input_activation,
             w_gates: &self.w_gates,
             b_gates: &self.b_gates,
             w_out: &self.w_out,
@@ -604,6 +680,15 @@ impl Exported {
             Exported::F32(n) => n.stream(inputs),
             Exported::Int16(n) => n.stream(inputs),
             Exported::Int8(n) => n.stream(inputs),
+        }
+    }
+
+    /// Activation after the network's input layer.
+    pub fn input_activation(&self) -> InputActivation {
+        match self {
+            Exported::F32(n) => n.input_activation,
+            Exported::Int16(n) => n.in_activation,
+            Exported::Int8(n) => n.in_activation,
         }
     }
 
@@ -694,13 +779,18 @@ fn write_quant<F: WeightFormat>(
     );
     let _ = writeln!(
         s,
-        "/// The network's integer format: `{}` weights and the activation-index shifts of \
-         its power-of-two scales.",
+        "/// The network's integer format: `{}` weights, the input activation and the \
+         activation-index shifts of its power-of-two scales.",
         F::NAME
     );
     let _ = writeln!(s, "pub struct Format;");
     let _ = writeln!(s, "impl QuantFormat for Format {{");
     let _ = writeln!(s, "    type Weights = {fmt};");
+    let _ = writeln!(
+        s,
+        "    const INPUT_ACTIVATION: InputActivation = InputActivation::{};",
+        activation_variant(n.in_activation)
+    );
     let _ = writeln!(s, "    const INPUT_SHIFT: u32 = {};", n.in_shift);
     let _ = writeln!(
         s,
@@ -753,16 +843,37 @@ fn write_quant<F: WeightFormat>(
     let _ = writeln!(s, "}};");
 }
 
+/// The `InputActivation` variant's name in a generated file (a closed set, never text
+/// from the input).
+fn activation_variant(a: InputActivation) -> &'static str {
+    match a {
+        InputActivation::Tanh => "Tanh",
+        InputActivation::Linear => "Linear",
+    }
+}
+
+/// The `firmware::quant::InputLayer` type of an activation.
+fn input_layer_type(a: InputActivation) -> &'static str {
+    match a {
+        InputActivation::Tanh => "TanhInput",
+        InputActivation::Linear => "LinearInput",
+    }
+}
+
 fn write_f32(s: &mut String, n: &F32Net) {
     let d = n.dims;
     let (i, eb, h, o, ob) = (d.input, d.embed_blocks, d.hidden, d.output, d.output_blocks);
     let e = 4 * eb;
     let z = e + h;
     let v4 = |b: &[f32; 4]| list(b, |x| f32_lit(*x));
-    let _ = writeln!(s, "/// The network's type: f32, sizes from the exporter.");
+    let layer = input_layer_type(n.input_activation);
     let _ = writeln!(
         s,
-        "pub type Network = F32Lstm<{i}, {e}, {eb}, {h}, {z}, {o}, {ob}>;"
+        "/// The network's type: f32, sizes and input activation from the exporter."
+    );
+    let _ = writeln!(
+        s,
+        "pub type Network = F32Lstm<{i}, {e}, {eb}, {h}, {z}, {o}, {ob}, {layer}>;"
     );
     let _ = writeln!(s, "/// The network's recurrent state.");
     let _ = writeln!(s, "pub type State = F32State<{z}, {h}>;");
@@ -780,6 +891,7 @@ fn write_f32(s: &mut String, n: &F32Net) {
     );
     let _ = writeln!(s, "    w_in: {},", nested(&n.w_in, i, v4));
     let _ = writeln!(s, "    b_in: {},", list(&n.b_in, v4));
+    let _ = writeln!(s, "    input_layer: {layer},");
     let _ = writeln!(s, "    w_gates: {},", nested(&n.w_gates, z, v4));
     let _ = writeln!(s, "    b_gates: {},", list(&n.b_gates, v4));
     let _ = writeln!(s, "    w_out: {},", nested(&n.w_out, h, v4));
@@ -899,6 +1011,12 @@ pub fn render(
     };
     let _ = writeln!(s, "/// Numeric precision of the network.");
     let _ = writeln!(s, "pub const PRECISION: Precision = Precision::{prec};");
+    let _ = writeln!(s, "/// Activation after the network's input layer.");
+    let _ = writeln!(
+        s,
+        "pub const INPUT_ACTIVATION: InputActivation = InputActivation::{};",
+        activation_variant(net.input_activation())
+    );
     let _ = writeln!(s, "/// Feature preset the network was trained with.");
     let _ = writeln!(
         s,
@@ -1019,9 +1137,11 @@ pub fn render(
     let _ = writeln!(out, "#[allow(unused_imports)]");
     let _ = writeln!(out, "use crate::model::{{FeaturePreset, Precision}};");
     let _ = writeln!(out, "#[allow(unused_imports)]");
+    let _ = writeln!(out, "use crate::lstm::InputActivation;");
+    let _ = writeln!(out, "#[allow(unused_imports)]");
     let _ = writeln!(
         out,
-        "use crate::quant::{{F32Lstm, F32State, I8Weights, I16Weights, QuantFormat, QuantLstm, QuantState}};"
+        "use crate::quant::{{F32Lstm, F32State, I8Weights, I16Weights, LinearInput, QuantFormat, QuantLstm, QuantState, TanhInput}};"
     );
     let _ = writeln!(
         out,

@@ -87,6 +87,90 @@ fn quantised_networks_track_the_f32_step_on_the_pytorch_fixture() {
     }
 }
 
+/// Max |exported - PyTorch| over the PyTorch reference run, per output, relative to the
+/// output's RMS.
+fn error_vs_reference(y: &[Vec<f32>], reference: &[Vec<f32>]) -> f64 {
+    let outputs = reference.first().map_or(0, Vec::len);
+    (0..outputs)
+        .map(|k| {
+            let rms = (reference.iter().map(|r| (r[k] as f64).powi(2)).sum::<f64>()
+                / reference.len() as f64)
+                .sqrt();
+            y.iter()
+                .zip(reference)
+                .map(|(a, b)| (a[k] as f64 - b[k] as f64).abs())
+                .fold(0.0, f64::max)
+                / rms
+        })
+        .fold(0.0, f64::max)
+}
+
+#[test]
+fn the_pytorch_fixtures_export_within_each_precisions_bound() {
+    // Both input layers, tanh and linear, against PyTorch's own outputs.
+    for (name, reference) in [
+        ("torch_lstm.safetensors", "torch_reference.csv"),
+        ("torch_linear.safetensors", "torch_linear_reference.csv"),
+    ] {
+        exported_forms_match_pytorch(name, reference);
+    }
+}
+
+fn exported_forms_match_pytorch(name: &str, reference: &str) {
+    let fixtures = workspace().join("model-export/tests/fixtures");
+    let m = model_export::nn::io::read_model(&fixtures.join(name)).expect("fixture");
+    let t = model_export::nn::data::Table::read(&fixtures.join(reference)).expect("reference");
+    let col = |n: String| t.column(&n).expect("column").to_vec();
+    let xs: Vec<Vec<f32>> = (0..m.dims.input).map(|k| col(format!("x{k}"))).collect();
+    let ys: Vec<Vec<f32>> = (0..m.dims.output).map(|k| col(format!("y{k}"))).collect();
+    let inputs: Vec<Vec<f32>> = (0..t.len())
+        .map(|r| xs.iter().map(|c| c[r]).collect())
+        .collect();
+    let torch: Vec<Vec<f32>> = (0..t.len())
+        .map(|r| ys.iter().map(|c| c[r]).collect())
+        .collect();
+    // The bound of each precision: max error over the run, relative to the output RMS.
+    for (p, bound) in [
+        (Precision::F32, 1e-5f64),
+        (Precision::Int16, 2e-3),
+        (Precision::Int8, 2e-2),
+    ] {
+        let y = Exported::new(&m, p).expect("export").stream(&inputs);
+        let err = error_vs_reference(&y, &torch);
+        println!(
+            "{name} ({} input layer), {}: max error vs PyTorch {err:.2e} of the output RMS \
+             (bound {bound:.0e})",
+            m.input_activation.name(),
+            p.name()
+        );
+        assert!(err <= bound, "{}: {err} > {bound}", p.name());
+    }
+}
+
+#[test]
+fn regenerating_the_linear_input_golden_models_gives_the_committed_files() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    for p in Precision::ALL {
+        let out = dir.path().join(format!("golden_linear_{}.rs", p.name()));
+        let mut a = args(out.clone(), p);
+        a.model = Some(workspace().join("model-export/tests/fixtures/torch_linear.safetensors"));
+        a.joints = vec![1, 2];
+        a.allow_worse = true;
+        let m = export::cli::model(&a).expect("model");
+        export::cli::export(&m, &a).expect("export");
+        let fresh = std::fs::read_to_string(&out).expect("read");
+        let committed =
+            workspace().join(format!("firmware/src/model/golden_linear_{}.rs", p.name()));
+        let committed = std::fs::read_to_string(&committed).expect("committed golden file");
+        assert!(
+            fresh == committed,
+            "golden_linear_{}: regenerate with firmware/scripts/regenerate-models.sh",
+            p.name()
+        );
+        assert!(fresh.contains("InputActivation::Linear"));
+    }
+}
+
 fn small() -> LstmModel {
     LstmModel::init(
         LstmDims {

@@ -1,7 +1,7 @@
 //! The LSTM compensation network: firmware step vs candle graph, PyTorch interchange,
 //! reset semantics, bad input, and learning a synthetic system with memory.
 use candle_core::Device;
-use firmware::lstm::LstmDims;
+use firmware::lstm::{InputActivation, LstmDims};
 use model_export::nn::data::{FeatureSpec, Sequence, Table};
 use model_export::nn::model::normalised_sequence;
 use model_export::nn::train::{TrainConfig, new_model, train};
@@ -55,11 +55,18 @@ fn max_rel(a: &[Vec<f32>], b: &[Vec<f32>]) -> f64 {
 
 #[test]
 fn firmware_stream_matches_the_candle_forward_over_1000_steps() {
-    let (m, xs) = paper_model();
+    for activation in [InputActivation::Tanh, InputActivation::Linear] {
+        let (mut m, xs) = paper_model();
+        m.input_activation = activation;
+        firmware_stream_matches_candle(&m, &xs);
+    }
+}
+
+fn firmware_stream_matches_candle(m: &LstmModel, xs: &[Vec<f32>]) {
     let dev = Device::Cpu;
-    let net = Net::from_model(&m, &dev).unwrap();
+    let net = Net::from_model(m, &dev).unwrap();
     let y = net
-        .forward(&normalised_sequence(&m, &xs, &dev).unwrap())
+        .forward(&normalised_sequence(m, xs, &dev).unwrap())
         .unwrap();
     let y: Vec<Vec<f32>> = y.squeeze(0).unwrap().to_vec2().unwrap();
     let candle: Vec<Vec<f32>> = y
@@ -71,9 +78,12 @@ fn firmware_stream_matches_the_candle_forward_over_1000_steps() {
                 .collect()
         })
         .collect();
-    let fw = m.stream(&xs).unwrap();
+    let fw = m.stream(xs).unwrap();
     let err = max_rel(&fw, &candle);
-    println!("firmware vs candle over 1000 steps: max error {err:.2e} of the output RMS");
+    println!(
+        "{} input layer: firmware vs candle over 1000 steps: max error {err:.2e} of the output RMS",
+        m.input_activation.name()
+    );
     assert!(err < 1e-5, "{err}");
 }
 
@@ -113,6 +123,40 @@ fn a_pytorch_model_imports_and_matches_its_reference() {
     for _ in 0..8 {
         assert_eq!(io::model_bytes(&again).unwrap(), bytes);
     }
+}
+
+#[test]
+fn a_pytorch_model_with_a_linear_input_layer_imports_and_matches_its_reference() {
+    use firmware::lstm::InputActivation;
+    let path = fixtures().join("torch_linear.safetensors");
+    let m = io::read_model(&path).unwrap();
+    assert_eq!(m.input_activation, InputActivation::Linear);
+    let err =
+        model_export::cli::check_reference(&m, &fixtures().join("torch_linear_reference.csv"))
+            .unwrap();
+    println!(
+        "linear input layer: firmware f32 step vs PyTorch: max error {err:.2e} of the output RMS"
+    );
+    assert!(err < 1e-5, "{err}");
+    // Run as tanh, the same weights are far off: the activation is what was imported.
+    let mut as_tanh = m.clone();
+    as_tanh.input_activation = InputActivation::Tanh;
+    let wrong = model_export::cli::check_reference(
+        &as_tanh,
+        &fixtures().join("torch_linear_reference.csv"),
+    )
+    .unwrap();
+    println!("the same weights run with tanh: max error {wrong:.2e} of the output RMS");
+    assert!(wrong > 1e-2, "{wrong}");
+    // Our writer keeps the activation; the caller's word must agree with the metadata.
+    let again = io::parse_model(&io::model_bytes(&m).unwrap()).unwrap();
+    assert_eq!(again, m);
+    assert!(io::read_model_with(&path, Some("linear")).is_ok());
+    let e = format!(
+        "{:#}",
+        io::read_model_with(&path, Some("tanh")).unwrap_err()
+    );
+    assert!(e.contains("disagrees"), "{e}");
 }
 
 fn edit_fixture(edit: impl Fn(&mut LstmModel)) -> Vec<u8> {
@@ -262,6 +306,12 @@ fn training_learns_a_system_with_memory() {
     // Same seed, same model.
     let (m2, _) = train(&init, &[&tr], &[&va], &cfg).unwrap();
     assert_eq!(m, m2);
+    // The training kernel runs tanh: a linear input layer is refused, not retrained as
+    // another network.
+    let mut linear = init.clone();
+    linear.input_activation = firmware::lstm::InputActivation::Linear;
+    let e = format!("{:#}", train(&linear, &[&tr], &[&va], &cfg).unwrap_err());
+    assert!(e.contains("linear"), "{e}");
 }
 
 #[test]
@@ -475,6 +525,7 @@ fn torch_style_file(
 
 #[test]
 fn pytorch_files_that_would_import_wrongly_are_refused_naming_why() {
+    use firmware::lstm::InputActivation;
     let dir = tempfile::tempdir().unwrap();
     let m = LstmModel::init(
         LstmDims {
@@ -489,13 +540,15 @@ fn pytorch_files_that_would_import_wrongly_are_refused_naming_why() {
     let bare = torch_style_file(dir.path(), &m, &[], &[]);
     let e = format!("{:#}", io::read_model(&bare).unwrap_err());
     assert!(e.contains("--input-activation"), "{e}");
-    let e = format!(
-        "{:#}",
-        io::read_model_with(&bare, Some("linear")).unwrap_err()
-    );
-    assert!(e.contains("linear") && e.contains("not supported"), "{e}");
     let ok = io::read_model_with(&bare, Some("tanh")).expect("said tanh");
     assert_eq!(ok.w_ih, m.w_ih);
+    assert_eq!(ok.input_activation, InputActivation::Tanh);
+    let linear = io::read_model_with(&bare, Some("linear")).expect("said linear");
+    assert_eq!(linear.input_activation, InputActivation::Linear);
+    // An activation the firmware does not run is named.
+    let relu = torch_style_file(dir.path(), &m, &[], &[("input_activation", "relu")]);
+    let e = format!("{:#}", io::read_model(&relu).unwrap_err());
+    assert!(e.contains("relu") && e.contains("not supported"), "{e}");
     // A 2-layer nn.LSTM: the second layer's tensors are named, not dropped.
     let h4 = 4 * 5;
     let extra = [
@@ -510,6 +563,18 @@ fn pytorch_files_that_would_import_wrongly_are_refused_naming_why() {
             && e.contains("second LSTM layer"),
         "{e}"
     );
+    // A bias the layout does not expect (here a LayerNorm's after the input layer, and
+    // an LSTM projection's weight) is named, not dropped.
+    let extra = [
+        ("input_norm.bias", vec![4], vec![0.5; 4]),
+        ("lstm.weight_hr_l0", vec![5, 5], vec![0.1; 25]),
+    ];
+    let odd = torch_style_file(dir.path(), &m, &extra, &[("input_activation", "tanh")]);
+    let e = format!("{:#}", io::read_model(&odd).unwrap_err());
+    assert!(
+        e.contains("input_norm.bias") && e.contains("lstm.weight_hr_l0") && e.contains("not use"),
+        "{e}"
+    );
     // Metadata and the caller disagree.
     let tagged = torch_style_file(dir.path(), &m, &[], &[("input_activation", "tanh")]);
     let e = format!(
@@ -517,4 +582,50 @@ fn pytorch_files_that_would_import_wrongly_are_refused_naming_why() {
         io::read_model_with(&tagged, Some("linear")).unwrap_err()
     );
     assert!(e.contains("disagrees"), "{e}");
+}
+
+#[test]
+fn import_takes_a_linear_input_layer_from_the_flag_or_the_metadata() {
+    use firmware::lstm::InputActivation;
+    let dir = tempfile::tempdir().unwrap();
+    let fixture = io::read_model(&fixtures().join("torch_linear.safetensors")).unwrap();
+    // The same tensors without metadata, as a plain torch save would write them.
+    let bare = torch_style_file(dir.path(), &fixture, &[], &[]);
+    let reference = fixtures().join("torch_linear_reference.csv");
+    let import = |flag: Option<&str>, out: &Path| {
+        let mut c = Command::new(env!("CARGO_BIN_EXE_model-export"));
+        c.args(["import", "--torch"])
+            .arg(&bare)
+            .arg("--out")
+            .arg(out)
+            .arg("--reference")
+            .arg(&reference);
+        if let Some(f) = flag {
+            c.args(["--input-activation", f]);
+        }
+        c.output().unwrap()
+    };
+    // Without the flag: refused, nothing written.
+    let out_path = dir.path().join("none.safetensors");
+    let out = import(None, &out_path);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("--input-activation"), "{err}");
+    assert!(!out_path.exists());
+    // Said wrongly: the reference check fails and nothing is written.
+    let out_path = dir.path().join("tanh.safetensors");
+    let out = import(Some("tanh"), &out_path);
+    assert!(!out.status.success());
+    assert!(!out_path.exists());
+    // Said right: matches PyTorch and writes a file that says linear.
+    let out_path = dir.path().join("linear.safetensors");
+    let out = import(Some("linear"), &out_path);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let written = io::read_model(&out_path).unwrap();
+    assert_eq!(written.input_activation, InputActivation::Linear);
+    assert_eq!(written.w_in, fixture.w_in);
 }

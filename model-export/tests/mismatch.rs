@@ -15,7 +15,7 @@ fn cli(args: &[&str]) -> anyhow::Result<()> {
 fn trained_feedforward(dir: &Path) -> (String, String) {
     let data = dir.join("data.csv");
     let mut csv = String::from("time_s,q_j4,qd_j4,tau_meas_j4,tau_model_j4,q_j5,qd_j5\n");
-    for k in 0..400 {
+    for k in 0..3000 {
         let t = k as f64 * 0.01;
         let (s, c) = t.sin_cos();
         csv += &format!("{t},{s},{c},{},{},{c},{s}\n", 2.0 * s, 1.9 * s);
@@ -35,6 +35,12 @@ fn trained_feedforward(dir: &Path) -> (String, String) {
         "4",
         "--epochs",
         "1",
+        "--window",
+        "20",
+        "--embed",
+        "4",
+        "--hidden",
+        "4",
         "--quiet",
         "--out",
         &net,
@@ -93,7 +99,11 @@ fn a_dataset_without_the_networks_columns_names_the_file_and_the_column() {
     let dir = tempfile::tempdir().unwrap();
     let (_, net) = trained_feedforward(dir.path());
     let thin = dir.path().join("thin.csv");
-    std::fs::write(&thin, "time_s,q_j4,qd_j4,tau_meas_j4\n0,0,0,0\n0.01,0,0,0\n").unwrap();
+    std::fs::write(
+        &thin,
+        "time_s,q_j4,qd_j4,tau_meas_j4\n0,0,0,0\n0.01,0,0,0\n",
+    )
+    .unwrap();
     refused(
         &net,
         &thin.display().to_string(),

@@ -16,7 +16,7 @@ use crate::dynamics::RigidBodyModel;
 use crate::features::{self, DRIVE_INPUTS_PER_JOINT, FRICTION_FEATURES, MotionMemory};
 use crate::math;
 use crate::model::FeaturePreset;
-use crate::quant::{F32Lstm, F32State, QuantFormat, QuantLstm, QuantState};
+use crate::quant::{F32Lstm, F32State, InputLayer, QuantFormat, QuantLstm, QuantState};
 use core::borrow::Borrow;
 
 /// The model's torques on every joint's reference (`q_ref`, `qd_ref`, `qdd_ref`).
@@ -105,7 +105,8 @@ impl<
     const Z: usize,
     const O: usize,
     const OB: usize,
-> TorqueNetwork<I, O> for F32Lstm<I, E, EB, H, Z, O, OB>
+    A: InputLayer,
+> TorqueNetwork<I, O> for F32Lstm<I, E, EB, H, Z, O, OB, A>
 {
     type State = F32State<Z, H>;
     fn zero_state(&self) -> Self::State {

@@ -5,13 +5,17 @@ use crate::dynamics::{JointModel, RigidBodyModel};
 #[allow(unused_imports)]
 use crate::model::{FeaturePreset, Precision};
 #[allow(unused_imports)]
-use crate::quant::{F32Lstm, F32State, I8Weights, I16Weights, QuantFormat, QuantLstm, QuantState};
+use crate::lstm::InputActivation;
+#[allow(unused_imports)]
+use crate::quant::{F32Lstm, F32State, I8Weights, I16Weights, LinearInput, QuantFormat, QuantLstm, QuantState, TanhInput};
 /// SHA-256 (first 8 bytes) of everything below this line.
-pub const CONTENT_HASH: u64 = 0x54330caded65aaee;
+pub const CONTENT_HASH: u64 = 0xd339dbbc0952d90f;
 /// Layout version of this file (`model_export::export::SCHEMA_VERSION`).
 pub const SCHEMA_VERSION: u32 = 5;
 /// Numeric precision of the network.
 pub const PRECISION: Precision = Precision::Int16;
+/// Activation after the network's input layer.
+pub const INPUT_ACTIVATION: InputActivation = InputActivation::Tanh;
 /// Feature preset the network was trained with.
 pub const FEATURE_PRESET: FeaturePreset = FeaturePreset::Paper;
 /// Number of inputs.
@@ -29,10 +33,11 @@ pub const OUTPUT_NAMES: [&str; 3] = ["tau_meas_j4@+1", "tau_meas_j5@+1", "tau_me
 pub const JOINT_INDICES: [usize; 3] = [3, 4, 5];
 /// Control (compensator) rate the network was trained for [Hz].
 pub const CONTROL_RATE_HZ: u32 = 100;
-/// The network's integer format: `int16` weights and the activation-index shifts of its power-of-two scales.
+/// The network's integer format: `int16` weights, the input activation and the activation-index shifts of its power-of-two scales.
 pub struct Format;
 impl QuantFormat for Format {
     type Weights = I16Weights;
+    const INPUT_ACTIVATION: InputActivation = InputActivation::Tanh;
     const INPUT_SHIFT: u32 = 17;
     const GATE_SHIFTS: [u32; 4] = [18, 18, 18, 18];
 }

@@ -32,12 +32,14 @@
 //! ```
 //!
 //! The other modules are fixed models for the bit-exact suites (`golden_*`, small,
-//! with odd sizes that exercise the padding) and the cycle benchmarks (`bench_*`:
+//! with odd sizes that exercise the padding; `golden_linear_*` the PyTorch fixture with
+//! a linear input layer) and the cycle benchmarks (`bench_*`:
 //! the paper's 9 -> 64 -> LSTM 64 -> 3 and the per-joint 3 -> 16 -> LSTM 16 -> 1,
 //! seeded random weights).
 
 /// Layout and numerics version of generated model files this firmware reads (5: the
-/// `drive` preset's presliding inputs and load-dependent friction features).
+/// input layer's activation, `INPUT_ACTIVATION`, tanh or linear; the `drive` preset's
+/// presliding inputs and load-dependent friction features).
 pub const SCHEMA_VERSION: u32 = 5;
 
 /// Index in a compiled-in dynamics model of each compensated joint: the robot joint
@@ -113,13 +115,19 @@ impl FeaturePreset {
 }
 
 /// Checks a generated model module at compile time: schema version, feature layout,
-/// that its network's `step` takes `[f32; INPUTS]` and returns `[f32; OUTPUTS]`, and a
-/// linear stage row per output.
+/// that its network's `step` takes `[f32; INPUTS]` and returns `[f32; OUTPUTS]`, a
+/// linear stage row per output, and that the network's type runs the input activation
+/// the file names.
 macro_rules! check_model {
     ($m:ident) => {
         const _: () = assert!(
             $m::SCHEMA_VERSION == SCHEMA_VERSION,
             "model file of another schema version"
+        );
+        const _: crate::lstm::InputActivation = $m::INPUT_ACTIVATION;
+        const _: () = assert!(
+            $m::Network::INPUT_ACTIVATION.is_linear() == $m::INPUT_ACTIVATION.is_linear(),
+            "the model's network type runs another input activation than INPUT_ACTIVATION"
         );
         const _: () = assert!(
             $m::FEATURE_PRESET.fits($m::JOINT_INDICES.len(), $m::INPUTS, $m::OUTPUTS),
@@ -158,6 +166,29 @@ pub mod golden_int8 {
     include!("golden_int8.rs");
 }
 check_model!(golden_int8);
+
+/// Golden model with a linear input layer, f32 (5 -> 12 -> LSTM 16 -> 2: the PyTorch
+/// fixture `model-export/tests/fixtures/torch_linear.safetensors`).
+#[allow(missing_docs)]
+pub mod golden_linear_f32 {
+    include!("golden_linear_f32.rs");
+}
+check_model!(golden_linear_f32);
+
+/// Golden model with a linear input layer, int16 weights (the PyTorch fixture; small
+/// enough for the fused kernel).
+#[allow(missing_docs)]
+pub mod golden_linear_int16 {
+    include!("golden_linear_int16.rs");
+}
+check_model!(golden_linear_int16);
+
+/// Golden model with a linear input layer, int8 weights (the PyTorch fixture).
+#[allow(missing_docs)]
+pub mod golden_linear_int8 {
+    include!("golden_linear_int8.rs");
+}
+check_model!(golden_linear_int8);
 
 /// Benchmark: the paper's network, f32.
 #[allow(missing_docs)]
@@ -214,15 +245,24 @@ pub enum GoldenModel {
     /// [`bench_paper_int16`]: the paper-size int16 network, too large for the fused
     /// kernel, so this suite covers the layer kernel and the Rust cell update.
     Int16Layer,
+    /// [`golden_linear_f32`]: a linear input layer, f32.
+    LinearF32,
+    /// [`golden_linear_int16`]: a linear input layer, int16 (the fused kernel).
+    LinearInt16,
+    /// [`golden_linear_int8`]: a linear input layer, int8 weights.
+    LinearInt8,
 }
 
 impl GoldenModel {
     /// All, in report order.
-    pub const ALL: [GoldenModel; 4] = [
+    pub const ALL: [GoldenModel; 7] = [
         GoldenModel::F32,
         GoldenModel::Int16,
         GoldenModel::Int8,
         GoldenModel::Int16Layer,
+        GoldenModel::LinearF32,
+        GoldenModel::LinearInt16,
+        GoldenModel::LinearInt8,
     ];
 
     /// Suite name in the QEMU report.
@@ -232,6 +272,9 @@ impl GoldenModel {
             GoldenModel::Int16 => "lstm_int16",
             GoldenModel::Int8 => "lstm_int8",
             GoldenModel::Int16Layer => "lstm_int16_layer",
+            GoldenModel::LinearF32 => "lstm_linear_f32",
+            GoldenModel::LinearInt16 => "lstm_linear_int16",
+            GoldenModel::LinearInt8 => "lstm_linear_int8",
         }
     }
 
@@ -247,6 +290,9 @@ impl GoldenModel {
             GoldenModel::Int16 => golden_int16::OUTPUTS,
             GoldenModel::Int8 => golden_int8::OUTPUTS,
             GoldenModel::Int16Layer => bench_paper_int16::OUTPUTS,
+            GoldenModel::LinearF32 => golden_linear_f32::OUTPUTS,
+            GoldenModel::LinearInt16 => golden_linear_int16::OUTPUTS,
+            GoldenModel::LinearInt8 => golden_linear_int8::OUTPUTS,
         }
     }
 
@@ -260,6 +306,18 @@ impl GoldenModel {
                 bench_paper_int16::SELF_CHECK_STEPS,
                 bench_paper_int16::SELF_CHECK_FNV,
             ),
+            GoldenModel::LinearF32 => (
+                golden_linear_f32::SELF_CHECK_STEPS,
+                golden_linear_f32::SELF_CHECK_FNV,
+            ),
+            GoldenModel::LinearInt16 => (
+                golden_linear_int16::SELF_CHECK_STEPS,
+                golden_linear_int16::SELF_CHECK_FNV,
+            ),
+            GoldenModel::LinearInt8 => (
+                golden_linear_int8::SELF_CHECK_STEPS,
+                golden_linear_int8::SELF_CHECK_FNV,
+            ),
         }
     }
 
@@ -270,6 +328,9 @@ impl GoldenModel {
             GoldenModel::Int16 => stream_model!(golden_int16, steps, emit),
             GoldenModel::Int8 => stream_model!(golden_int8, steps, emit),
             GoldenModel::Int16Layer => stream_model!(bench_paper_int16, steps, emit),
+            GoldenModel::LinearF32 => stream_model!(golden_linear_f32, steps, emit),
+            GoldenModel::LinearInt16 => stream_model!(golden_linear_int16, steps, emit),
+            GoldenModel::LinearInt8 => stream_model!(golden_linear_int8, steps, emit),
         }
     }
 }
@@ -303,6 +364,15 @@ mod tests {
     self_check!(bench_paper_int16_reproduces_the_exporter, bench_paper_int16);
     self_check!(bench_paper_int8_reproduces_the_exporter, bench_paper_int8);
     self_check!(bench_joint_int16_reproduces_the_exporter, bench_joint_int16);
+    self_check!(golden_linear_f32_reproduces_the_exporter, golden_linear_f32);
+    self_check!(
+        golden_linear_int16_reproduces_the_exporter,
+        golden_linear_int16
+    );
+    self_check!(
+        golden_linear_int8_reproduces_the_exporter,
+        golden_linear_int8
+    );
 
     #[test]
     fn quantised_outputs_track_f32() {

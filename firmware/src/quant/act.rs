@@ -69,9 +69,33 @@ pub fn tanh_q15(acc: i32, shift: u32) -> i16 {
     lookup(TANH, acc, shift)
 }
 
+/// The identity of an accumulator, requantised: `sat16(acc >> shift)` (one `SSAT #16`
+/// with the shift; the linear input layer's `e`, rounded to nearest by the half-step the
+/// exporter adds to its bias).
+#[inline(always)]
+pub fn linear_i16(acc: i32, shift: u32) -> i16 {
+    (acc >> (shift & 31)).clamp(i16::MIN as i32, i16::MAX as i32) as i16
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn linear_requantisation_is_a_saturating_floor_shift() {
+        for (acc, shift, want) in [
+            (0x1234_5678, 8, i16::MAX),
+            (-0x1234_5678, 8, i16::MIN),
+            (0x0012_3456, 8, 0x1234),
+            (-0x0012_3456, 8, -0x1235),
+            (-1, 3, -1),
+            (7, 3, 0),
+            (i32::MAX, 31, 0),
+            (i32::MIN, 31, -1),
+        ] {
+            assert_eq!(linear_i16(acc, shift), want, "{acc:#x} >> {shift}");
+        }
+    }
 
     fn sigmoid(x: f64) -> f64 {
         1.0 / (1.0 + (-x).exp())

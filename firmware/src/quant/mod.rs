@@ -1,5 +1,6 @@
 //! Quantised LSTM kernels: the streaming step of the compensation network
-//! (`input layer (tanh) -> LSTM -> output layer`, the architecture of `crate::lstm`)
+//! (`input layer (tanh or linear) -> LSTM -> output layer`, the architecture of
+//! `crate::lstm`)
 //! in three precisions, with weights pre-arranged by the exporter
 //! (`model-export export`) for the Cortex-M4:
 //!
@@ -17,6 +18,7 @@
 //! |---|---|---|
 //! | normalised input `x_n = (x - mean) / std` | Q3.12 | +-8 |
 //! | input-layer output `e = tanh(.)` | Q0.15 | +-1 |
+//! | input-layer output `e` of a linear input layer | `Q(15-F).F`, `F` per network | `+-2^(15-F)` |
 //! | hidden state `h` | Q0.15 | +-1 |
 //! | gates `i, f, o` (sigmoid) and `g` (tanh) | Q0.15 | 0..1, +-1 |
 //! | cell state `c` (i16, power-of-two scale 2^-11) | Q4.11 | +-16 |
@@ -31,7 +33,15 @@
 //! activation. The exporter picks each exponent as the largest for which every weight
 //! fits the format (32767 or 127) and no accumulator can overflow for any input
 //! (`sum_k |w_q[r][k]| * 32768 + |b_q[r]| < 2^31` on every row), and refuses a model
-//! whose index shift would leave `1..=31`. The bias is folded into the accumulator's
+//! whose index shift would leave `1..=31`.
+//!
+//! A linear input layer ([`InputActivation::Linear`]) stores `e` as
+//! `sat16(acc >> (P_in + 12 - F))`: `F` fraction bits, chosen by the exporter as the
+//! most for which the largest `|e|` any Q3.12 input can give fits int16; the shift
+//! replaces the tanh index shift ([`QuantFormat::INPUT_SHIFT`]), the half-step that rounds
+//! it to nearest is folded into the input bias, and the gate weights of the `e` columns
+//! carry the factor `2^(15 - F)` so that every column of `[e; h]` accumulates on the
+//! gate's one scale. The bias is folded into the accumulator's
 //! scale (`b_q = round(b * 2^E)`), the input normalisation into a per-feature multiplier
 //! (`x_q = round((x - mean) * 2^12 / std)`, the only f32 arithmetic besides the output),
 //! the LSTM's two PyTorch biases into one. With `i, f, g, o` in Q0.15:
@@ -68,6 +78,7 @@ pub mod act;
 pub mod golden;
 
 use crate::dsp;
+use crate::lstm::InputActivation;
 use crate::math;
 
 /// Fraction bits of the normalised input (Q3.12).
@@ -156,14 +167,18 @@ impl WeightFormat for I8Weights {
     }
 }
 
-/// The integer format of one compiled-in network: its weight format and the
-/// activation-index shifts of its layers (from the power-of-two scales the exporter
-/// chose). Constants, so that the assembly kernel can encode them as immediates; each
-/// generated model file defines its own `Format` type.
+/// The integer format of one compiled-in network: its weight format, its input
+/// layer's activation and the activation-index shifts of its layers (from the
+/// power-of-two scales the exporter chose). Constants, so that the assembly kernel can
+/// encode them as immediates; each generated model file defines its own `Format` type.
 pub trait QuantFormat {
     /// Weight storage format.
     type Weights: WeightFormat;
-    /// Index shift of the input layer's accumulators (`P_in + 12 - 9`), `1..=31`.
+    /// Activation after the input layer.
+    const INPUT_ACTIVATION: InputActivation;
+    /// Shift of the input layer's accumulators, `1..=31`: the tanh index shift
+    /// (`P_in + 12 - 9`), or for a linear input layer the requantisation shift to `e`'s
+    /// format (`P_in + 12 - F`).
     const INPUT_SHIFT: u32;
     /// Index shift of each gate's accumulators (`P_g + 15 - 9`), order `i, f, g, o`,
     /// each `1..=31`.
@@ -227,7 +242,9 @@ pub struct QuantView<'a, F: WeightFormat> {
     pub in_w: &'a [F::Quad],
     /// `[EB]` input layer bias (accumulator scale).
     pub in_bias: &'a [[i32; 4]],
-    /// Activation-index shift of the input layer ([`QuantFormat::INPUT_SHIFT`]).
+    /// Activation after the input layer ([`QuantFormat::INPUT_ACTIVATION`]).
+    pub in_activation: InputActivation,
+    /// Shift of the input layer's accumulators ([`QuantFormat::INPUT_SHIFT`]).
     pub in_shift: u32,
     /// `[H * ZQ]` gates.
     pub gate_w: &'a [F::Quad],
@@ -335,10 +352,18 @@ impl<F: WeightFormat> QuantView<'_, F> {
         let d = self.dims;
         let iq = d.input_quads.max(1);
         self.quantise_input(xq, input);
-        // Input layer: e = tanh(acc), Q0.15, into the e part of z.
+        // Input layer: e = tanh(acc), Q0.15, or the linear layer's requantised acc,
+        // into the e part of z.
         let blocks = self.in_w.chunks_exact(iq).zip(self.in_bias);
+        let linear = self.in_activation.is_linear();
         for ((w, b), zq_e) in blocks.zip(z.iter_mut()) {
-            let e = F::dot4(*b, w, xq).map(|a| act::tanh_q15(a, self.in_shift));
+            let e = F::dot4(*b, w, xq).map(|a| {
+                if linear {
+                    act::linear_i16(a, self.in_shift)
+                } else {
+                    act::tanh_q15(a, self.in_shift)
+                }
+            });
             *zq_e = [dsp::pack(e[0], e[1]), dsp::pack(e[2], e[3])];
         }
         // LSTM gates: one 4-row block per cell (i, f, g, o), the whole layer in one
@@ -493,6 +518,8 @@ impl<
             "gate index shift out of 1..=31"
         );
     };
+    /// Activation after the input layer (the format's).
+    pub const INPUT_ACTIVATION: InputActivation = F::INPUT_ACTIVATION;
     /// Sizes.
     pub const DIMS: QuantDims = QuantDims {
         input: I,
@@ -521,6 +548,7 @@ impl<
             input_scale: &self.input_scale,
             in_w: self.in_w.as_flattened(),
             in_bias: &self.in_bias,
+            in_activation: F::INPUT_ACTIVATION,
             in_shift: F::INPUT_SHIFT,
             gate_w: self.gate_w.as_flattened(),
             gate_bias: &self.gate_bias,
@@ -602,6 +630,8 @@ pub struct F32View<'a> {
     pub w_in: &'a [[f32; 4]],
     /// `[EB]`
     pub b_in: &'a [[f32; 4]],
+    /// Activation after the input layer.
+    pub input_activation: InputActivation,
     /// `[H * Z]`, `Z = E + H`.
     pub w_gates: &'a [[f32; 4]],
     /// `[H]`
@@ -672,13 +702,19 @@ impl F32View<'_> {
             *n = (x - m) * s;
         }
         let xn: &[f32] = xn;
-        // Input layer: one kernel call into the e part of z, then tanh in place.
+        // Input layer: one kernel call into the e part of z, then the bias and tanh
+        // (or nothing more: a linear input layer) in place.
         let (z4, _) = z.as_chunks_mut::<4>();
         let e4 = z4.get_mut(..d.embed_blocks).unwrap_or_default();
         dsp::matvec4_f32(e4, self.w_in, xn);
+        let linear = self.input_activation.is_linear();
         for (e, b) in e4.iter_mut().zip(self.b_in) {
             for (v, bb) in e.iter_mut().zip(b) {
-                *v = math::tanh_fast(*v + bb);
+                *v = if linear {
+                    *v + bb
+                } else {
+                    math::tanh_fast(*v + bb)
+                };
             }
         }
         // LSTM gates: the whole layer in one kernel call, then the cells.
@@ -721,9 +757,32 @@ impl F32View<'_> {
     }
 }
 
+/// The input layer's activation as a type, so that a compiled-in f32 network carries
+/// it in its type ([`TanhInput`], [`LinearInput`]).
+pub trait InputLayer: Copy + core::fmt::Debug {
+    /// The activation.
+    const ACTIVATION: InputActivation;
+}
+
+/// A `tanh` input layer ([`InputActivation::Tanh`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TanhInput;
+
+impl InputLayer for TanhInput {
+    const ACTIVATION: InputActivation = InputActivation::Tanh;
+}
+
+/// A linear input layer ([`InputActivation::Linear`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LinearInput;
+
+impl InputLayer for LinearInput {
+    const ACTIVATION: InputActivation = InputActivation::Linear;
+}
+
 /// The f32 network of fixed sizes in the exporter's layout: `I` inputs, input layer
-/// of `E = 4 * EB` rows, `H` cells over `Z = E + H` columns (`[e; h]`), `O` outputs
-/// in `OB` blocks. Each block stores its 4 rows column-interleaved (`[k][row]`);
+/// of `E = 4 * EB` rows with the activation `A` ([`InputLayer`]), `H` cells over
+/// `Z = E + H` columns (`[e; h]`), `O` outputs in `OB` blocks. Each block stores its 4 rows column-interleaved (`[k][row]`);
 /// every row sums left to right in f32 as in `crate::lstm`; sigmoid and tanh are
 /// the f32-only `math::sigmoid_fast` / `math::tanh_fast` (within 2e-7 of libm's, so
 /// the step tracks `crate::lstm` to about 1e-7, not bit for bit).
@@ -736,6 +795,7 @@ pub struct F32Lstm<
     const Z: usize,
     const O: usize,
     const OB: usize,
+    A: InputLayer,
 > {
     /// Input normalisation: per-feature mean.
     pub input_mean: [f32; I],
@@ -745,6 +805,8 @@ pub struct F32Lstm<
     pub w_in: [[[f32; 4]; I]; EB],
     /// Input layer bias.
     pub b_in: [[f32; 4]; EB],
+    /// Activation after the input layer.
+    pub input_layer: A,
     /// Gate weights over `[e; h]`, block `j` = rows `i_j, f_j, g_j, o_j`.
     pub w_gates: [[[f32; 4]; Z]; H],
     /// Gate bias (`bias_ih + bias_hh`).
@@ -801,8 +863,11 @@ impl<
     const Z: usize,
     const O: usize,
     const OB: usize,
-> F32Lstm<I, E, EB, H, Z, O, OB>
+    A: InputLayer,
+> F32Lstm<I, E, EB, H, Z, O, OB, A>
 {
+    /// Activation after the input layer.
+    pub const INPUT_ACTIVATION: InputActivation = A::ACTIVATION;
     /// Compile-time shape check, evaluated by every [`Self::step`] instantiation.
     pub const SHAPE: () = {
         assert!(I > 0 && O > 0 && E > 0 && H > 0, "empty network");
@@ -829,6 +894,7 @@ impl<
             input_inv_std: &self.input_inv_std,
             w_in: self.w_in.as_flattened(),
             b_in: &self.b_in,
+            input_activation: A::ACTIVATION,
             w_gates: self.w_gates.as_flattened(),
             b_gates: &self.b_gates,
             w_out: self.w_out.as_flattened(),

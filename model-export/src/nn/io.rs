@@ -2,7 +2,7 @@
 //!
 //! | name | shape | PyTorch |
 //! |---|---|---|
-//! | `input.weight` / `input.bias` | `[E, I]` / `[E]` | `nn.Linear(I, E)`, followed by `torch.tanh` |
+//! | `input.weight` / `input.bias` | `[E, I]` / `[E]` | `nn.Linear(I, E)`, followed by `torch.tanh` or nothing (metadata `input_activation`) |
 //! | `lstm.weight_ih_l0` / `lstm.weight_hh_l0` | `[4H, E]` / `[4H, H]` | `nn.LSTM(E, H, batch_first=True)`, gates i, f, g, o |
 //! | `lstm.bias_ih_l0` / `lstm.bias_hh_l0` | `[4H]` | same |
 //! | `output.weight` / `output.bias` | `[O, H]` / `[O]` | `nn.Linear(H, O)` |
@@ -11,13 +11,14 @@
 //!
 //! All tensors are F32 (F64 and F16/BF16 are accepted on import and converted).
 //! Metadata: `input_names` and `output_names` (comma-separated column names, optional),
-//! `preset` (optional), `input_activation` (`tanh`; a file without it needs the caller's
-//! word, `import --input-activation`, since guessing wrong changes every output). A tensor
+//! `preset` (optional), `input_activation` (`tanh` or `linear`; a file without it needs
+//! the caller's word, `import --input-activation`, since guessing wrong changes every
+//! output). A tensor
 //! this layout does not use (a second LSTM layer's `*_l1`, a projection) is an error
 //! naming it, never silently dropped.
 use super::model::LstmModel;
 use anyhow::{Context, Result, bail};
-use firmware::lstm::LstmDims;
+use firmware::lstm::{InputActivation, LstmDims};
 use safetensors::{Dtype, SafeTensors, tensor::TensorView};
 use std::collections::HashMap;
 use std::path::Path;
@@ -126,7 +127,7 @@ pub fn parse_model_with(bytes: &[u8], input_activation: Option<&str>) -> Result<
         }
         Ok(v)
     };
-    let m = LstmModel {
+    let mut m = LstmModel {
         dims,
         input_names: names(meta.metadata(), "input_names", "x", i)?,
         output_names: names(meta.metadata(), "output_names", "y", o)?,
@@ -139,6 +140,7 @@ pub fn parse_model_with(bytes: &[u8], input_activation: Option<&str>) -> Result<
         input_std: shaped("norm.input_std", &[i])?,
         w_in,
         b_in: shaped("input.bias", &[e])?,
+        input_activation: InputActivation::Tanh,
         w_ih,
         w_hh: shaped("lstm.weight_hh_l0", &[4 * h, h])?,
         b_ih: shaped("lstm.bias_ih_l0", &[4 * h])?,
@@ -159,7 +161,7 @@ pub fn parse_model_with(bytes: &[u8], input_activation: Option<&str>) -> Result<
         .as_ref()
         .and_then(|m| m.get("input_activation"))
         .map(String::as_str);
-    match (file_activation, input_activation) {
+    let act = match (file_activation, input_activation) {
         (Some(f), Some(given)) if f != given => {
             bail!("metadata input_activation `{f}` disagrees with --input-activation {given}")
         }
@@ -167,11 +169,14 @@ pub fn parse_model_with(bytes: &[u8], input_activation: Option<&str>) -> Result<
             "no `input_activation` metadata: say which activation follows the input layer \
              (`model-export import --input-activation tanh|linear`)"
         ),
-        (Some(act), _) | (None, Some(act)) if act != "tanh" => {
-            bail!("input_activation `{act}` is not supported: the firmware's input layer uses tanh")
-        }
-        _ => {}
-    }
+        (Some(act), _) | (None, Some(act)) => act,
+    };
+    m.input_activation = InputActivation::from_name(act).ok_or_else(|| {
+        anyhow::anyhow!(
+            "input_activation `{act}` is not supported: the input layer is followed by tanh \
+             or nothing (`tanh`, `linear`)"
+        )
+    })?;
     Ok(m)
 }
 
@@ -240,7 +245,10 @@ pub fn model_bytes(m: &LstmModel) -> Result<Vec<u8>> {
         ("input_names".to_string(), m.input_names.join(",")),
         ("output_names".to_string(), m.output_names.join(",")),
         ("preset".to_string(), m.preset.clone()),
-        ("input_activation".to_string(), "tanh".to_string()),
+        (
+            "input_activation".to_string(),
+            m.input_activation.name().to_string(),
+        ),
         (
             "format".to_string(),
             "joint-feedforward-lstm-v1".to_string(),

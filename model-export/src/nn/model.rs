@@ -4,7 +4,7 @@ use super::fused::FusedLstm;
 use anyhow::{Result, bail};
 use candle_core::{DType, Device, Tensor, Var};
 use firmware::features::{self, DRIVE_INPUTS_PER_JOINT, FRICTION_FEATURES};
-use firmware::lstm::{LstmDims, LstmView};
+use firmware::lstm::{InputActivation, LstmDims, LstmView};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -30,6 +30,9 @@ pub struct LstmModel {
     pub w_in: Vec<f32>,
     /// `input.bias` `[E]`.
     pub b_in: Vec<f32>,
+    /// Activation after the input layer (`tanh` for the networks trained here; a
+    /// PyTorch network may have a plain `nn.Linear`).
+    pub input_activation: InputActivation,
     /// `lstm.weight_ih_l0` `[4H, E]`.
     pub w_ih: Vec<f32>,
     /// `lstm.weight_hh_l0` `[4H, H]`.
@@ -77,6 +80,7 @@ impl LstmModel {
             input_std: vec![1.0; i],
             w_in: uniform(e * i, i),
             b_in: uniform(e, i),
+            input_activation: InputActivation::Tanh,
             w_ih: uniform(4 * h * e, h),
             w_hh: uniform(4 * h * h, h),
             b_ih: uniform(4 * h, h),
@@ -222,6 +226,7 @@ impl Streamer<'_> {
             input_std: &m.input_std,
             w_in: &m.w_in,
             b_in: &m.b_in,
+            input_activation: m.input_activation,
             w_ih: &m.w_ih,
             w_hh: &m.w_hh,
             b_gates: &self.b_gates,
@@ -267,6 +272,8 @@ impl Streamer<'_> {
 pub struct Net {
     /// Sizes.
     pub dims: LstmDims,
+    /// Activation after the input layer.
+    pub input_activation: InputActivation,
     /// `input.weight`, `input.bias`, `lstm.weight_ih_l0`, `lstm.weight_hh_l0`,
     /// `lstm.bias_ih_l0`, `lstm.bias_hh_l0`, `output.weight`, `output.bias`.
     pub vars: Vec<Var>,
@@ -294,7 +301,11 @@ impl Net {
             t(&m.w_out, &[o, h])?,
             t(&m.b_out, &[o])?,
         ];
-        Ok(Net { dims: m.dims, vars })
+        Ok(Net {
+            dims: m.dims,
+            input_activation: m.input_activation,
+            vars,
+        })
     }
 
     /// Copies the variables back into `m`'s weights.
@@ -325,7 +336,11 @@ impl Net {
         } = self.dims;
         let v = |k: usize| self.vars[k].as_tensor();
         let x2 = x.reshape((b * t_len, i))?;
-        let emb = x2.matmul(&v(0).t()?)?.broadcast_add(v(1))?.tanh()?;
+        let pre = x2.matmul(&v(0).t()?)?.broadcast_add(v(1))?;
+        let emb = match self.input_activation {
+            InputActivation::Tanh => pre.tanh()?,
+            InputActivation::Linear => pre,
+        };
         let bias = (v(4) + v(5))?;
         let gx = emb
             .matmul(&v(2).t()?)?

@@ -10,7 +10,7 @@ use super::data::{Sequence, mean_std};
 use super::fused_net::{Adam, FusedNet, WindowSet};
 use super::model::LstmModel;
 use anyhow::{Result, bail};
-use firmware::lstm::LstmDims;
+use firmware::lstm::{InputActivation, LstmDims};
 use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -225,6 +225,19 @@ pub fn new_model(
     Ok(m)
 }
 
+/// The training kernel (`FusedNet`) runs a tanh input layer: a linear one is refused
+/// rather than trained as another network.
+fn tanh_input_layer(init: &LstmModel) -> Result<()> {
+    if init.input_activation != InputActivation::Tanh {
+        bail!(
+            "training runs a tanh input layer; this network's input layer is {} \
+             (import it and export it as it is instead)",
+            init.input_activation.name()
+        );
+    }
+    Ok(())
+}
+
 fn run(
     init: &LstmModel,
     train: &[&Sequence],
@@ -234,6 +247,7 @@ fn run(
     epochs: usize,
     show: bool,
 ) -> Result<(LstmModel, History)> {
+    tanh_input_layer(init)?;
     let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed ^ 0x5eed);
     let mut net = FusedNet::from_model(init, cfg.threads);
     let adam = Adam::new(lr);
@@ -425,6 +439,7 @@ pub fn time_epochs(
     lr: f64,
     epochs: usize,
 ) -> Result<(usize, Vec<(f64, f64)>)> {
+    tanh_input_layer(init)?;
     let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed);
     let mut net = FusedNet::from_model(init, cfg.threads);
     let adam = Adam::new(lr);
