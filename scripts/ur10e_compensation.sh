@@ -10,7 +10,8 @@
 # - train the networks (NETS, below) on the training runs, validated on the validation run;
 # - evaluate every network on every test run and static pose, with the friction-feature
 #   least-squares baseline fitted on the same training datasets (`--baseline-data`);
-# - OUT_DIR/summary.json (per run and joint) and a Markdown table of it.
+# - OUT_DIR/summary.json (per run and joint, and the training time per network) and a
+#   Markdown table of it.
 # Runs are named by file name without `.csv`. Training runs: every identification run
 # whose name contains no `load`/`Load` (this drops `unload` too) and whose values are in
 # range (the screen below), except the test and validation runs. Test runs: TEST_RUNS (default `20_02_19_15harm50sec
@@ -107,6 +108,7 @@ evaluated=("${tests[@]}" "${poses[@]}")
 train_list() { local r s=""; for r in "${train[@]}"; do s+="$1/$r.csv,"; done; echo "${s%,}"; }
 
 nets_run=()
+: > train_seconds.txt
 for spec in "${all_nets[@]}"; do
   read -r name preset dir <<< "$spec"
   case " ${want_nets[*]} " in *" $name "*) ;; *) continue ;; esac
@@ -124,10 +126,12 @@ for spec in "${all_nets[@]}"; do
   for g in "${groups[@]}"; do
     tag=$name
     [ "$preset" != drive ] || tag="${name}_j$g"
+    start=$(date +%s.%N)
     "$ME" train --data "$(train_list "$dir")" --validation-data "$dir/$val.csv" --preset "$preset" \
       --joints "$g" "${size[@]}" --epochs "$epochs" --lr 0.003 --seed 1 --quiet \
       --out "lstm_$tag.safetensors" --loss-plot "loss_$tag.svg" --report "train_$tag.json" \
       > "train_$tag.txt"
+    echo "$name $(date +%s.%N) $start" >> train_seconds.txt
     for r in "${evaluated[@]}"; do
       "$ME" evaluate --model "lstm_$tag.safetensors" --data "$dir/$r.csv" --preset "$preset" \
         --joints "$g" --baseline-data "$(train_list "$dir")" \
@@ -179,7 +183,14 @@ def first(names, run, j, key):
     return None
 
 
-summary = {"nets": nets, "runs": {}}
+# Wall-clock training time per network [s] (a drive compensator: its per-joint networks
+# together).
+train_seconds = {}
+with open("train_seconds.txt") as f:
+    for line in f:
+        name, end, start = line.split()
+        train_seconds[name] = train_seconds.get(name, 0.0) + float(end) - float(start)
+summary = {"nets": nets, "train_seconds": train_seconds, "runs": {}}
 for run in runs:
     paper, samples = dataset_figures(f"data-paper/{run}.csv")
     first_stage, _ = dataset_figures(f"data/{run}.csv")
@@ -215,4 +226,5 @@ for run, r in summary["runs"].items():
         vals += [x["compensated_rms_nm"][n] for n in nets] + [x["persistence_rms_nm"]]
         print(f"| {run} | {j} | " + " | ".join(cell(v) for v in vals) + f" | {x['moving_samples']} |")
 EOF
+python3 -c 'import json; print("training time [s]:", json.load(open("summary.json"))["train_seconds"])'
 echo "wrote $out/summary.json"
