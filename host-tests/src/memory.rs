@@ -372,16 +372,18 @@ impl ChipState {
             if a.store || model.map.region(a.addr) != Region::Flash {
                 continue;
             }
-            let line = a.addr / rb;
-            if self.dcache.hit(line) {
-                continue;
+            let last = a.addr.saturating_add(u32::from(a.bytes.max(1)) - 1) / rb;
+            for line in a.addr / rb..=last {
+                if self.dcache.hit(line) {
+                    continue;
+                }
+                let at = self.now + 1 + k as u64;
+                let ready = self.flash_read(model, at);
+                self.dcache.insert(line);
+                let wait = ready - at;
+                self.now += wait;
+                self.stalls.data += wait;
             }
-            let at = self.now + 1 + k as u64;
-            let ready = self.flash_read(model, at);
-            self.dcache.insert(line);
-            let wait = ready - at;
-            self.now += wait;
-            self.stalls.data += wait;
         }
         self.now += u64::from(table_cycles);
         self.now - issue
@@ -592,6 +594,18 @@ mod tests {
         };
         assert_eq!(replay(&m, &reads(5)).1.data, 3 * 5 * 4);
         assert_eq!(replay(&m, &reads(4)).1.data, 4 * 4);
+        // An 8-byte load across two lines reads both: the first waits 4, the second
+        // waits for the flash to finish the first (5).
+        let across = vec![(
+            ins(0x2000_0000, 4, "ldrd", "r0, r1, [r2]"),
+            3,
+            vec![Access {
+                addr: 0x9004,
+                bytes: 8,
+                store: false,
+            }],
+        )];
+        assert_eq!(replay(&m, &across).1.data, 4 + 5);
         // Loads from SRAM and CCM SRAM never wait.
         let code = vec![
             load(0x2000_0000, 0x2000_1000),
