@@ -726,7 +726,7 @@ mod tests {
         let b = budgets();
         assert_eq!(b.mcu.clock_hz, 170_000_000);
         assert_eq!(b.binary["board"].flash_bytes, 512 * 1024);
-        assert_eq!(b.binary["board"].ram_bytes, 128 * 1024);
+        assert_eq!(b.binary["board"].ram_bytes, 96 * 1024);
         assert_eq!(
             b.cycle_limit("no-such-workload"),
             170_000_000 / b.mcu.control_rate_hz

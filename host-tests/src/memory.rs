@@ -61,16 +61,16 @@ pub struct MemoryMap {
 impl MemoryMap {
     /// The QEMU mps2-an386 image (`firmware/qemu/memory.x`) as the board places it
     /// (root `memory.x`): the image's FLASH region (0x0000_0000, 4 MiB: vector
-    /// table, `.text`, `.rodata`) is the board's flash at 0x0800_0000, its RAM
-    /// region (0x2000_0000, 4 MiB: `.data`, `.bss`, stack) the board's SRAM at
-    /// 0x2000_0000, and 0x1000_0000..0x1000_8000 the board's CCM SRAM on the
-    /// instruction bus.
+    /// table, `.text`, `.rodata`) is the board's flash at 0x0800_0000, its CCMRAM
+    /// region (0x203F_8000, 32 KiB: `.ccmram_text`) the board's CCM SRAM on the
+    /// instruction bus at 0x1000_0000, the rest of its RAM (0x2000_0000: `.data`,
+    /// `.bss`, stack) the board's SRAM at 0x2000_0000.
     pub fn qemu_image_on_g474() -> MemoryMap {
         MemoryMap {
             ranges: vec![
                 (0x0000_0000, 0x0040_0000, Region::Flash),
-                (0x1000_0000, 0x1000_8000, Region::CcmSram),
-                (0x2000_0000, 0x2040_0000, Region::Sram),
+                (0x203F_8000, 0x2040_0000, Region::CcmSram),
+                (0x2000_0000, 0x203F_8000, Region::Sram),
             ],
         }
     }
@@ -609,7 +609,7 @@ mod tests {
         // Loads from SRAM and CCM SRAM never wait.
         let code = vec![
             load(0x2000_0000, 0x2000_1000),
-            load(0x2000_0002, 0x1000_0000),
+            load(0x2000_0002, 0x203F_8000),
         ];
         assert_eq!(replay(&m, &code).0, 4);
     }
@@ -680,7 +680,7 @@ mod tests {
     #[test]
     fn code_in_sram_and_ccm_sram_never_waits() {
         let m = ChipModel::g474_for_qemu_image();
-        assert_eq!(replay(&m, &straight(0x1000_0000, 16)).0, 16);
+        assert_eq!(replay(&m, &straight(0x203F_8000, 16)).0, 16);
         assert_eq!(replay(&m, &straight(0x2000_0000, 16)).0, 16);
         assert_eq!(replay(&m, &straight(0x0000_0100, 16)).0, 16 + 4 + 7 * 3);
     }
@@ -690,7 +690,7 @@ mod tests {
         let q = MemoryMap::qemu_image_on_g474();
         assert_eq!(q.region(0x0000_1234), Region::Flash);
         assert_eq!(q.region(0x2000_0100), Region::Sram);
-        assert_eq!(q.region(0x1000_0100), Region::CcmSram);
+        assert_eq!(q.region(0x203F_8100), Region::CcmSram);
         assert_eq!(q.region(0x4000_0000), Region::Other);
         let b = MemoryMap::g474();
         assert_eq!(b.region(0x0800_0000), Region::Flash);

@@ -43,6 +43,11 @@ use stm32g4::stm32g474::{self as pac, interrupt};
 #[cfg(feature = "defmt")]
 use {defmt_rtt as _, panic_probe as _};
 
+/// The start-up copy of the CCM SRAM code (raw copy between linker-script
+/// addresses).
+#[path = "shared/ccm.rs"]
+#[allow(unsafe_code)]
+mod ccm;
 /// The clock set-up shared with the bench binary (raw multi-bit `FLASH_ACR`,
 /// `PLLCFGR` and `CFGR` field writes the PAC marks unsafe).
 #[path = "shared/clock.rs"]
@@ -172,6 +177,7 @@ static COMPENSATOR_DUE: AtomicBool = AtomicBool::new(false);
 
 #[entry]
 fn main() -> ! {
+    ccm::copy_code();
     let (Some(mut cp), Some(dp)) = (cortex_m::Peripherals::take(), pac::Peripherals::take()) else {
         cortex_m::asm::udf();
     };
@@ -289,7 +295,11 @@ fn SysTick() {
 }
 
 /// The PWM-rate control interrupt: ADC1 injected end of sequence (TIM1-triggered).
+/// Runs from CCM SRAM (the section `ccm::copy_code` fills before interrupts are
+/// enabled).
 #[interrupt]
+#[allow(unsafe_code)]
+#[unsafe(link_section = ".ccmram_text")]
 fn ADC1_2() {
     static mut CONTEXT: Option<PwmContext> = None;
     let start = DWT::cycle_count();

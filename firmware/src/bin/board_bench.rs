@@ -21,6 +21,11 @@ use stm32g4::stm32g474 as pac;
 #[cfg(feature = "defmt")]
 use {defmt_rtt as _, panic_probe as _};
 
+/// The start-up copy of the CCM SRAM code (raw copy between linker-script
+/// addresses).
+#[path = "shared/ccm.rs"]
+#[allow(unsafe_code)]
+mod ccm;
 /// The board's clock set-up (raw multi-bit register field writes the PAC marks
 /// unsafe).
 #[path = "shared/clock.rs"]
@@ -37,6 +42,7 @@ const MAX_WORKLOADS: usize = 16;
 
 #[entry]
 fn main() -> ! {
+    ccm::copy_code();
     let (Some(mut cp), Some(dp)) = (cortex_m::Peripherals::take(), pac::Peripherals::take()) else {
         cortex_m::asm::udf()
     };
