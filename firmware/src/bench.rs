@@ -84,6 +84,7 @@ impl Workload for Dot64 {
     }
 
     #[inline(never)]
+    #[cfg_attr(target_os = "none", unsafe(link_section = ".ccmram_text"))]
     fn tick(&mut self) {
         self.out = math::dot(&self.a, &self.b);
         self.a[0] = self.out * 1.0e-3;
@@ -122,6 +123,7 @@ impl Workload for LstmGateActivations64 {
     }
 
     #[inline(never)]
+    #[cfg_attr(target_os = "none", unsafe(link_section = ".ccmram_text"))]
     fn tick(&mut self) {
         let mut acc = 0.0f32;
         for &p in &self.pre {
@@ -164,6 +166,7 @@ impl Workload for JointTrig6 {
     }
 
     #[inline(never)]
+    #[cfg_attr(target_os = "none", unsafe(link_section = ".ccmram_text"))]
     fn tick(&mut self) {
         let mut acc = 0.0f32;
         for q in self.q_rad.iter_mut() {
@@ -209,6 +212,7 @@ macro_rules! model_workload {
             }
 
             #[inline(never)]
+            #[cfg_attr(target_os = "none", unsafe(link_section = ".ccmram_text"))]
             fn tick(&mut self) {
                 let x = self.inputs[self.t % MODEL_INPUT_STEPS];
                 let y = crate::model::$m::NETWORK.step(&mut self.state, &x);
@@ -271,6 +275,7 @@ impl Workload for Dynamics6F32 {
     }
 
     #[inline(never)]
+    #[cfg_attr(target_os = "none", unsafe(link_section = ".ccmram_text"))]
     fn tick(&mut self) {
         let qd = core::array::from_fn(|k| 0.5 - 0.2 * k as f32);
         let qdd = core::array::from_fn(|k| 1.0 - 0.3 * k as f32);

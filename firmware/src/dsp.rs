@@ -9,9 +9,11 @@
 //! iteration); the single-block kernels ([`dot4_i16`], [`dot4_i8`], [`dot4_f32`])
 //! serve the small layers. [`lstm_small_i16`] runs a small int16 network's input
 //! layer, gates and cell updates in one unrolled block with `[e; h]` held in FPU
-//! registers (its portable twin is `quant::QuantView::step`). VMLA/VFMA are not used: the M4 takes 3 cycles for them
-//! against 2 for VMUL + VADD, and the separate rounding keeps the bits of the plain
-//! Rust sum. Every kernel has a portable twin in plain Rust with the same wrapping
+//! registers (its portable twin is `quant::QuantView::step`). VMLA/VFMA are not used: the separate rounding of VMUL + VADD
+//! keeps the bits of the plain Rust sum (and the M4 takes 3 cycles for VMLA against 2
+//! for VMUL + VADD only when the VADD does not read the VMUL's result in the next
+//! instruction: the FPU's one-cycle result stall, which the f32 kernels avoid by
+//! issuing a column's VMULs before its VADDs). Every kernel has a portable twin in plain Rust with the same wrapping
 //! (integer) or rounding (f32) semantics; the host (and any target without the DSP
 //! extension) runs the twin, the Cortex-M4 the assembly, the twin tests here check
 //! the kernels against their definitions, and the QEMU golden suites (`host-tests`)
@@ -446,12 +448,12 @@ mod asm {
                 "vldmia {xp}!, {{s20}}\n",
                 "vldmia {wp}!, {{s22-s25}}\n",
                 "vmul.f32 s30, s22, s20\n",
-                "vadd.f32 s16, s16, s30\n",
                 "vmul.f32 s31, s23, s20\n",
+                "vadd.f32 s16, s16, s30\n",
                 "vadd.f32 s17, s17, s31\n",
                 "vmul.f32 s30, s24, s20\n",
-                "vadd.f32 s18, s18, s30\n",
                 "vmul.f32 s31, s25, s20\n",
+                "vadd.f32 s18, s18, s30\n",
                 "vadd.f32 s19, s19, s31\n",
             )
         };
@@ -479,20 +481,20 @@ mod asm {
                 "vldmia {xp}!, {{s20-s21}}",
                 "vldmia {wp}!, {{s22-s29}}",
                 "vmul.f32 s30, s22, s20",
-                "vadd.f32 s16, s16, s30",
                 "vmul.f32 s31, s23, s20",
+                "vadd.f32 s16, s16, s30",
                 "vadd.f32 s17, s17, s31",
                 "vmul.f32 s30, s24, s20",
-                "vadd.f32 s18, s18, s30",
                 "vmul.f32 s31, s25, s20",
+                "vadd.f32 s18, s18, s30",
                 "vadd.f32 s19, s19, s31",
                 "vmul.f32 s30, s26, s21",
-                "vadd.f32 s16, s16, s30",
                 "vmul.f32 s31, s27, s21",
+                "vadd.f32 s16, s16, s30",
                 "vadd.f32 s17, s17, s31",
                 "vmul.f32 s30, s28, s21",
-                "vadd.f32 s18, s18, s30",
                 "vmul.f32 s31, s29, s21",
+                "vadd.f32 s18, s18, s30",
                 "vadd.f32 s19, s19, s31",
                 "subs {n2}, {n2}, #1",
                 "bne 2b",
@@ -612,73 +614,76 @@ mod asm {
         }
     }
 
-    /// Four columns of the f32 layer kernel: inputs s4+k, weights s12-s27.
+    /// Four columns of the f32 layer kernel: inputs s4+k, weights s12-s27. Per
+    /// column the four VMUL come before the four VADD, so that no VADD reads the
+    /// result of the instruction right before it (the FPU's one-cycle result stall);
+    /// each accumulator still adds its products in column order.
     macro_rules! cols4_f32 {
         ($x0:literal, $x1:literal, $x2:literal, $x3:literal) => {
             concat!(
                 "vmul.f32 s28, s12, ",
                 $x0,
                 "\n",
-                "vadd.f32 s0, s0, s28\n",
                 "vmul.f32 s29, s13, ",
                 $x0,
                 "\n",
-                "vadd.f32 s1, s1, s29\n",
                 "vmul.f32 s30, s14, ",
                 $x0,
                 "\n",
-                "vadd.f32 s2, s2, s30\n",
                 "vmul.f32 s31, s15, ",
                 $x0,
                 "\n",
+                "vadd.f32 s0, s0, s28\n",
+                "vadd.f32 s1, s1, s29\n",
+                "vadd.f32 s2, s2, s30\n",
                 "vadd.f32 s3, s3, s31\n",
                 "vmul.f32 s28, s16, ",
                 $x1,
                 "\n",
-                "vadd.f32 s0, s0, s28\n",
                 "vmul.f32 s29, s17, ",
                 $x1,
                 "\n",
-                "vadd.f32 s1, s1, s29\n",
                 "vmul.f32 s30, s18, ",
                 $x1,
                 "\n",
-                "vadd.f32 s2, s2, s30\n",
                 "vmul.f32 s31, s19, ",
                 $x1,
                 "\n",
+                "vadd.f32 s0, s0, s28\n",
+                "vadd.f32 s1, s1, s29\n",
+                "vadd.f32 s2, s2, s30\n",
                 "vadd.f32 s3, s3, s31\n",
                 "vmul.f32 s28, s20, ",
                 $x2,
                 "\n",
-                "vadd.f32 s0, s0, s28\n",
                 "vmul.f32 s29, s21, ",
                 $x2,
                 "\n",
-                "vadd.f32 s1, s1, s29\n",
                 "vmul.f32 s30, s22, ",
                 $x2,
                 "\n",
-                "vadd.f32 s2, s2, s30\n",
                 "vmul.f32 s31, s23, ",
                 $x2,
                 "\n",
+                "vadd.f32 s0, s0, s28\n",
+                "vadd.f32 s1, s1, s29\n",
+                "vadd.f32 s2, s2, s30\n",
                 "vadd.f32 s3, s3, s31\n",
                 "vmul.f32 s28, s24, ",
                 $x3,
                 "\n",
-                "vadd.f32 s0, s0, s28\n",
                 "vmul.f32 s29, s25, ",
                 $x3,
                 "\n",
-                "vadd.f32 s1, s1, s29\n",
                 "vmul.f32 s30, s26, ",
                 $x3,
                 "\n",
-                "vadd.f32 s2, s2, s30\n",
                 "vmul.f32 s31, s27, ",
                 $x3,
                 "\n",
+                "vadd.f32 s0, s0, s28\n",
+                "vadd.f32 s1, s1, s29\n",
+                "vadd.f32 s2, s2, s30\n",
                 "vadd.f32 s3, s3, s31\n",
             )
         };
@@ -730,12 +735,12 @@ mod asm {
                 "vldmia {xp}!, {{s4}}",
                 "vldmia {wp}!, {{s12-s15}}",
                 "vmul.f32 s28, s12, s4",
-                "vadd.f32 s0, s0, s28",
                 "vmul.f32 s29, s13, s4",
-                "vadd.f32 s1, s1, s29",
                 "vmul.f32 s30, s14, s4",
-                "vadd.f32 s2, s2, s30",
                 "vmul.f32 s31, s15, s4",
+                "vadd.f32 s0, s0, s28",
+                "vadd.f32 s1, s1, s29",
+                "vadd.f32 s2, s2, s30",
                 "vadd.f32 s3, s3, s31",
                 "subs {k}, {k}, #1",
                 "bne 5b",

@@ -7,6 +7,7 @@
 //! measures cycles.
 use crate::cycles::CycleModel;
 use crate::elf::{self, SizeReport};
+use crate::memory::ChipModel;
 use crate::target::{self, FirmwareBin};
 use crate::{disasm, qemu, trace};
 use anyhow::{Context, Result, bail};
@@ -104,6 +105,8 @@ pub struct FunctionCost {
     pub instructions: f64,
     /// Estimated cycles per tick.
     pub cycles: f64,
+    /// Estimated cycles per tick on the STM32G474.
+    pub cycles_g474: f64,
 }
 
 /// Measured cost of one workload's tick.
@@ -125,6 +128,23 @@ pub struct WorkloadCost {
     pub cycles_mean: f64,
     /// Most estimated cycles of one tick.
     pub cycles_max: u64,
+    /// Estimated cycles per tick on the STM32G474 at 170 MHz (flash wait states,
+    /// ART prefetch and caches, FPU stall; [`crate::memory`]): fewest.
+    pub cycles_min_g474: u64,
+    /// Mean estimated cycles per tick on the STM32G474.
+    pub cycles_mean_g474: f64,
+    /// Most estimated cycles of one tick on the STM32G474 (the figure the budget
+    /// limit applies to).
+    pub cycles_max_g474: u64,
+    /// The same with the pipeline refill at the top of its range
+    /// ([`Measurement::pipeline_refill_high`]).
+    pub cycles_max_g474_refill_high: u64,
+    /// Of the worst STM32G474 tick: cycles waiting for instruction fetches from flash.
+    pub stall_fetch: u64,
+    /// Of the worst STM32G474 tick: cycles waiting for data reads from flash.
+    pub stall_data: u64,
+    /// Of the worst STM32G474 tick: FPU result-dependency stalls.
+    pub stall_fpu: u64,
     /// Instructions per tick from SysTick under `-icount shift=0` (±8 with 10 ticks).
     pub icount_instructions: u64,
     /// Deepest stack use of a tick in bytes, measured in QEMU by stack painting
@@ -141,6 +161,12 @@ pub struct Measurement {
     pub opt_level: Option<String>,
     /// Pipeline refill `P` used by the cycle model.
     pub pipeline_refill: u32,
+    /// Top of the refill range the STM32G474 figure is also given for.
+    pub pipeline_refill_high: u32,
+    /// The STM32G474 memory model's flash settings: wait states.
+    pub flash_wait_states: u32,
+    /// Bytes per flash read (8: dual bank, 16: single bank).
+    pub flash_read_bytes: u32,
     /// Sizes per binary.
     pub binaries: Vec<BinarySize>,
     /// Cycle estimates per workload.
@@ -158,6 +184,8 @@ pub struct Options {
     pub opt_level: Option<String>,
     /// Cycle model.
     pub model: CycleModel,
+    /// Memory model of the STM32G474 for the QEMU image's placement.
+    pub chip: ChipModel,
     /// Biggest symbols to list per binary.
     pub top_symbols: usize,
 }
@@ -172,6 +200,7 @@ impl Default for Options {
             ],
             opt_level: None,
             model: CycleModel::default(),
+            chip: ChipModel::g474_for_qemu_image(),
             top_symbols: 10,
         }
     }
@@ -191,32 +220,45 @@ pub fn measure(opts: &Options) -> Result<Measurement> {
         });
     }
     let bench_elf = target::build_with(FirmwareBin::QemuBench, level)?;
-    let (workloads, traced_whole_text) = estimate_workloads(&bench_elf, &opts.model)?;
+    let (workloads, traced_whole_text) = estimate_workloads(&bench_elf, &opts.model, &opts.chip)?;
     Ok(Measurement {
         opt_level: opts.opt_level.clone(),
         pipeline_refill: opts.model.pipeline_refill,
+        pipeline_refill_high: refill_high(&opts.model),
+        flash_wait_states: opts.chip.flash.wait_states,
+        flash_read_bytes: opts.chip.flash.read_bytes,
         binaries,
         workloads,
         traced_whole_text,
     })
 }
 
-/// Runs the bench binary (icount run, then traced run) and costs every workload.
-pub fn estimate_workloads(elf: &Path, model: &CycleModel) -> Result<(Vec<WorkloadCost>, bool)> {
+/// Top of the pipeline refill range (TRM: `P` is 1 to 3).
+fn refill_high(model: &CycleModel) -> u32 {
+    model.pipeline_refill.max(3)
+}
+
+/// Runs the bench binary (icount run, then traced run) and costs every workload,
+/// at zero wait states and on the STM32G474 (`chip`).
+pub fn estimate_workloads(
+    elf: &Path,
+    model: &CycleModel,
+    chip: &ChipModel,
+) -> Result<(Vec<WorkloadCost>, bool)> {
     let bench = trace::parse_bench(&qemu::run(elf)?)?;
     let code = disasm::disassemble(elf)?;
     let fns = elf::functions(elf)?;
     let entries: Vec<u32> = bench.workloads.iter().map(|w| w.tick_addr).collect();
     let (reach, indirect) = trace::reachable(&code, &fns, &entries)?;
-    let filter = if indirect {
+    let ranges = if indirect {
         // An indirect branch could go anywhere: trace all code.
         let lo = fns.first().map_or(0, |f| f.start);
         let hi = fns.iter().map(|f| f.end).max().unwrap_or(lo);
-        format!("{lo:#x}+{:#x}", hi - lo)
+        vec![(lo, hi)]
     } else {
-        trace::dfilter(&reach)
+        trace::trace_ranges(&reach)
     };
-    let (pcs, out) = trace::run_trace(elf, &filter)?;
+    let (traced, out) = trace::run_trace(elf, &ranges)?;
     let traced_bench = trace::parse_bench(&out)?;
     if traced_bench
         .workloads
@@ -226,7 +268,11 @@ pub fn estimate_workloads(elf: &Path, model: &CycleModel) -> Result<(Vec<Workloa
     {
         bail!("the traced run reported other tick addresses than the icount run");
     }
-    let ticks = trace::split_ticks(&pcs, &code, &fns, &entries, model)?;
+    let ticks = trace::split_ticks(&traced, &code, &fns, &entries, model, chip)?;
+    let high = CycleModel {
+        pipeline_refill: refill_high(model),
+    };
+    let ticks_high = trace::split_ticks(&traced, &code, &fns, &entries, &high, chip)?;
     let mut out = Vec::new();
     for w in &bench.workloads {
         let mine: Vec<&trace::TickTrace> =
@@ -240,23 +286,36 @@ pub fn estimate_workloads(elf: &Path, model: &CycleModel) -> Result<(Vec<Workloa
             );
         }
         let n = mine.len() as f64;
-        let mut per_fn: BTreeMap<&str, (u64, u64)> = BTreeMap::new();
+        let mut per_fn: BTreeMap<&str, (u64, u64, u64)> = BTreeMap::new();
         for t in &mine {
             for (name, c) in &t.per_function {
                 let e = per_fn.entry(name).or_default();
                 e.0 += c.instructions;
                 e.1 += c.cycles;
+                e.2 += c.chip_cycles;
             }
         }
         let mut functions: Vec<FunctionCost> = per_fn
             .into_iter()
-            .map(|(name, (i, c))| FunctionCost {
+            .map(|(name, (i, c, g))| FunctionCost {
                 name: name.to_string(),
                 instructions: i as f64 / n,
                 cycles: c as f64 / n,
+                cycles_g474: g as f64 / n,
             })
             .collect();
-        functions.sort_by(|a, b| b.cycles.total_cmp(&a.cycles));
+        functions.sort_by(|a, b| b.cycles_g474.total_cmp(&a.cycles_g474));
+        let chip = |t: &&trace::TickTrace| t.total.chip_cycles;
+        let worst = mine
+            .iter()
+            .max_by_key(|t| chip(t))
+            .expect("ticks were traced");
+        let high_max = ticks_high
+            .iter()
+            .filter(|t| t.entry == w.tick_addr)
+            .map(|t| t.total.chip_cycles)
+            .max()
+            .unwrap_or(0);
         out.push(WorkloadCost {
             name: w.name.clone(),
             function: elf::function_at(&fns, w.tick_addr)
@@ -267,6 +326,13 @@ pub fn estimate_workloads(elf: &Path, model: &CycleModel) -> Result<(Vec<Workloa
             cycles_min: mine.iter().map(|t| t.total.cycles).min().unwrap_or(0),
             cycles_mean: mine.iter().map(|t| t.total.cycles).sum::<u64>() as f64 / n,
             cycles_max: mine.iter().map(|t| t.total.cycles).max().unwrap_or(0),
+            cycles_min_g474: mine.iter().map(chip).min().unwrap_or(0),
+            cycles_mean_g474: mine.iter().map(chip).sum::<u64>() as f64 / n,
+            cycles_max_g474: worst.total.chip_cycles,
+            cycles_max_g474_refill_high: high_max,
+            stall_fetch: worst.stalls.fetch,
+            stall_data: worst.stalls.data,
+            stall_fpu: worst.stalls.fpu,
             icount_instructions: w.icount_instructions_per_tick(bench.ticks),
             stack_bytes: w.stack_bytes,
             functions,
@@ -360,13 +426,13 @@ pub fn check(m: &Measurement, b: &Budgets) -> Vec<Violation> {
             });
         }
         let limit = b.cycle_limit(&w.name);
-        if w.cycles_max > limit {
+        if w.cycles_max_g474 > limit {
             v.push(Violation {
                 what: format!(
-                    "workload {} ({}): estimated cycles per tick",
+                    "workload {} ({}): estimated STM32G474 cycles per tick",
                     w.name, w.function
                 ),
-                measured: w.cycles_max,
+                measured: w.cycles_max_g474,
                 limit,
             });
         }
@@ -456,9 +522,15 @@ impl Report {
         }
         let _ = writeln!(
             s,
-            "\n## Cycles per control tick (estimated: QEMU trace x Cortex-M4 TRM tables 3-1/7-1, \
-             P = {}, zero wait states; not measured cycles)\n",
-            m.pipeline_refill
+            "\n## Cycles per control tick (estimated, not measured: QEMU trace x Cortex-M4 TRM \
+             tables 3-1/7-1, P = {p}; zero wait states, and on the {mcu} at {mhz} MHz: flash with \
+             {ws} wait states, {bits}-bit reads, ART prefetch, 1 KiB instruction and 256 B data \
+             cache, SRAM/CCM SRAM zero-wait, FPU result stall)\n",
+            p = m.pipeline_refill,
+            mcu = b.mcu.name,
+            mhz = b.mcu.clock_hz / 1_000_000,
+            ws = m.flash_wait_states,
+            bits = 8 * m.flash_read_bytes,
         );
         let rates: Vec<String> = b
             .mcu
@@ -468,34 +540,31 @@ impl Report {
             .collect();
         let _ = writeln!(
             s,
-            "| workload | ticks | instr/tick (trace) | instr/tick (icount) | cycles min | cycles mean | cycles max | cycles/MAC | {} | limit | status | stack |",
+            "| workload | ticks | instr/tick (trace) | instr/tick (icount) | zero-wait mean | zero-wait max | G474 min | G474 mean | G474 max | G474 max, P = {} | fetch / data / FPU stall | G474 cycles/MAC | {} | limit (G474 max) | status | stack |",
+            m.pipeline_refill_high,
             rates.join(" | ")
         );
         let _ = writeln!(
             s,
-            "|---|---:|---:|---:|---:|---:|---:|---:|{}---:|---|---:|",
+            "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|{}---:|---|---:|",
             "---:|".repeat(rates.len())
         );
+        let shares_of = |cycles: f64| -> Vec<String> {
+            b.mcu
+                .control_rates_hz
+                .iter()
+                .map(|&r| format!("{:.3} %", 100.0 * cycles * r as f64 / b.mcu.clock_hz as f64))
+                .collect()
+        };
         for w in &m.workloads {
             let limit = b.cycle_limit(&w.name);
             let per_mac = if w.macs == 0 {
                 "-".to_string()
             } else {
-                format!("{:.2}", w.cycles_mean / f64::from(w.macs))
+                format!("{:.2}", w.cycles_mean_g474 / f64::from(w.macs))
             };
-            let shares: Vec<String> = b
-                .mcu
-                .control_rates_hz
-                .iter()
-                .map(|&r| {
-                    format!(
-                        "{:.3} %",
-                        100.0 * w.cycles_max as f64 * r as f64 / b.mcu.clock_hz as f64
-                    )
-                })
-                .collect();
-            let status = if w.cycles_max > limit {
-                format!("OVER by {}", w.cycles_max - limit)
+            let status = if w.cycles_max_g474 > limit {
+                format!("OVER by {}", w.cycles_max_g474 - limit)
             } else {
                 "ok".to_string()
             };
@@ -506,16 +575,22 @@ impl Report {
             };
             let _ = writeln!(
                 s,
-                "| {} | {} | {:.0} | {} | {} | {:.0} | {} | {} | {} | {} | {} | {} |",
+                "| {} | {} | {:.0} | {} | {:.0} | {} | {} | {:.0} | {} | {} | {} / {} / {} | {} | {} | {} | {} | {} |",
                 w.name,
                 w.ticks,
                 w.instructions_mean,
                 w.icount_instructions,
-                w.cycles_min,
                 w.cycles_mean,
                 w.cycles_max,
+                w.cycles_min_g474,
+                w.cycles_mean_g474,
+                w.cycles_max_g474,
+                w.cycles_max_g474_refill_high,
+                w.stall_fetch,
+                w.stall_data,
+                w.stall_fpu,
                 per_mac,
-                shares.join(" | "),
+                shares_of(w.cycles_max_g474 as f64).join(" | "),
                 limit,
                 status,
                 stack
@@ -523,33 +598,32 @@ impl Report {
         }
         // The board binary runs every registered workload in one tick.
         let sum = |f: fn(&WorkloadCost) -> f64| m.workloads.iter().map(f).sum::<f64>();
-        let max_sum = sum(|w| w.cycles_max as f64);
-        let shares: Vec<String> = b
-            .mcu
-            .control_rates_hz
-            .iter()
-            .map(|&r| {
-                format!(
-                    "{:.3} %",
-                    100.0 * max_sum * r as f64 / b.mcu.clock_hz as f64
-                )
-            })
-            .collect();
         let _ = writeln!(
             s,
-            "| all workloads (one board tick) | | {:.0} | {:.0} | {:.0} | {:.0} | {:.0} | - | {} | - | - | - |",
+            "| all workloads (one board tick) | | {:.0} | {:.0} | {:.0} | {:.0} | {:.0} | {:.0} | {:.0} | {:.0} | {:.0} / {:.0} / {:.0} | - | {} | - | - | - |",
             sum(|w| w.instructions_mean),
             sum(|w| w.icount_instructions as f64),
-            sum(|w| w.cycles_min as f64),
             sum(|w| w.cycles_mean),
-            max_sum,
-            shares.join(" | ")
+            sum(|w| w.cycles_max as f64),
+            sum(|w| w.cycles_min_g474 as f64),
+            sum(|w| w.cycles_mean_g474),
+            sum(|w| w.cycles_max_g474 as f64),
+            sum(|w| w.cycles_max_g474_refill_high as f64),
+            sum(|w| w.stall_fetch as f64),
+            sum(|w| w.stall_data as f64),
+            sum(|w| w.stall_fpu as f64),
+            shares_of(sum(|w| w.cycles_max_g474 as f64)).join(" | ")
         );
         let _ = writeln!(
             s,
-            "\nShares use the worst traced tick at {} MHz. icount: SysTick under `-icount shift=0` \
-             (40 instructions per count; the measuring loop subtracted). stack: deepest stack use \
-             of a tick in QEMU (painted stack), checked against the stack reserve.",
+            "\nThe limits apply to the G474 max (worst traced tick, each tick from empty caches). \
+             Shares use it at {} MHz. Stalls: cycles of the worst G474 tick spent waiting for \
+             instruction fetches and data reads from flash, and FPU result stalls. icount: \
+             SysTick under `-icount shift=0` (40 instructions per count; the measuring loop \
+             subtracted). stack: deepest stack use of a tick in QEMU (painted stack), checked \
+             against the stack reserve. Placement: the QEMU image's code and constants \
+             (0x0000_0000) are the board's flash (0x0800_0000), its RAM (0x2000_0000) the \
+             board's SRAM.",
             b.mcu.clock_hz / 1_000_000
         );
         if m.traced_whole_text {
@@ -560,13 +634,16 @@ impl Report {
         }
         for w in &m.workloads {
             let _ = writeln!(s, "\n### {}: per function (self, mean per tick)\n", w.name);
-            let _ = writeln!(s, "| function | instructions | est. cycles |");
-            let _ = writeln!(s, "|---|---:|---:|");
+            let _ = writeln!(
+                s,
+                "| function | instructions | est. cycles, zero wait | est. cycles, G474 |"
+            );
+            let _ = writeln!(s, "|---|---:|---:|---:|");
             for f in &w.functions {
                 let _ = writeln!(
                     s,
-                    "| `{}` | {:.1} | {:.1} |",
-                    f.name, f.instructions, f.cycles
+                    "| `{}` | {:.1} | {:.1} | {:.1} |",
+                    f.name, f.instructions, f.cycles, f.cycles_g474
                 );
             }
         }
@@ -607,6 +684,9 @@ mod tests {
         Measurement {
             opt_level: None,
             pipeline_refill: 1,
+            pipeline_refill_high: 3,
+            flash_wait_states: 4,
+            flash_read_bytes: 8,
             binaries: vec![BinarySize {
                 name: "board".into(),
                 elf: PathBuf::from("board"),
@@ -625,7 +705,14 @@ mod tests {
                 instructions_mean: 1.0,
                 cycles_min: cycles,
                 cycles_mean: cycles as f64,
-                cycles_max: cycles,
+                cycles_max: cycles / 2,
+                cycles_min_g474: cycles,
+                cycles_mean_g474: cycles as f64,
+                cycles_max_g474: cycles,
+                cycles_max_g474_refill_high: cycles + 1,
+                stall_fetch: cycles / 4,
+                stall_data: 0,
+                stall_fpu: 0,
                 icount_instructions: 1,
                 stack_bytes: 64,
                 functions: vec![],
@@ -639,7 +726,7 @@ mod tests {
         let b = budgets();
         assert_eq!(b.mcu.clock_hz, 170_000_000);
         assert_eq!(b.binary["board"].flash_bytes, 512 * 1024);
-        assert_eq!(b.binary["board"].ram_bytes, 128 * 1024);
+        assert_eq!(b.binary["board"].ram_bytes, 96 * 1024);
         assert_eq!(
             b.cycle_limit("no-such-workload"),
             170_000_000 / b.mcu.control_rate_hz

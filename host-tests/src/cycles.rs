@@ -10,13 +10,17 @@
 //! conditional instruction that writes the PC) cost `1` when not taken and `1+P`
 //! when taken; taken or not is read from the trace (the next executed address).
 //!
-//! What it ignores (so the figures are estimates, not measured cycles):
-//! - flash wait states and the ART accelerator: the STM32G474 at 170 MHz runs its
-//!   flash with 8 wait states behind a prefetch buffer and instruction cache; the
-//!   table assumes zero-wait memory;
+//! These are zero-wait figures: memory as fast as the tables assume. The STM32G474
+//! runs its flash at 170 MHz with 4 wait states (RM0440 §3.3.3) behind the ART
+//! accelerator; [`crate::memory`] replays the same instructions on that memory
+//! system (and adds the FPU result-dependency stall) for the chip's figure.
+//!
+//! What the tables' weighting ignores (so the figures are estimates, not measured
+//! cycles):
+//! - memory: flash wait states, prefetch and caches (modelled in [`crate::memory`]);
 //! - the range of `P` (1 to 3 cycles, depending on the target's alignment and
 //!   width and on branch speculation): `P` is the fixed [`CycleModel::pipeline_refill`]
-//!   (default 1, the table's best case);
+//!   (default 1, the table's best case; the budget also gives the chip figure at 3);
 //! - load/store pipelining: the TRM lets neighbouring independent LDRs (and an STR
 //!   after an LDR) overlap, taking 1 cycle instead of 2, and an STR with an
 //!   immediate offset complete in 1; here every LDR/STR/VLDR/VSTR costs the table's
@@ -27,7 +31,7 @@
 //!   preceding 16-bit instruction); an instruction inside an IT block whose condition
 //!   fails counts as if it executed (the trace shows the address, not the flags);
 //! - FPU overlap: VDIV/VSQRT (14) count in full although the integer pipeline
-//!   continues while they run, and FPU register-dependency stalls are not modelled;
+//!   continues while they run (the VADD/VMUL result stall is in [`crate::memory`]);
 //! - interrupts, exceptions and bus contention (none occur inside the measured ticks).
 use anyhow::{Result, bail};
 

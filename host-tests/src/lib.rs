@@ -10,6 +10,7 @@ pub mod cycles;
 pub mod disasm;
 pub mod elf;
 pub mod golden;
+pub mod memory;
 pub mod qemu;
 pub mod target;
 pub mod trace;

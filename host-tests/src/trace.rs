@@ -1,26 +1,29 @@
 //! Cycle estimate without hardware: the QEMU bench binary's instruction trace,
 //! joined with the disassembly and weighted by the Cortex-M4 cycle tables
-//! ([`crate::cycles`]).
+//! ([`crate::cycles`]) and by the STM32G474's memory system ([`crate::memory`]).
 //!
 //! Two runs of the bench binary (`firmware/qemu/src/bench.rs`):
 //! 1. under `-icount shift=0` (one instruction = 1 ns of virtual time): it prints each
 //!    workload's tick address and the SysTick ticks around its `TICKS` calls. SysTick
 //!    runs on the 25 MHz core clock of mps2-an386, so it advances once per 40
 //!    instructions: `instructions = 40 x SysTick ticks` (each reading exact to one count).
-//! 2. with `-singlestep -d exec,nochain -D FILE -dfilter RANGES` (no `-icount`, which
-//!    re-executes some instructions in the log): the executed addresses of the tick
-//!    functions and every function they reach, one line per instruction.
+//! 2. with the TCG plugin `host-tests/qemu-plugin/memtrace.c` (no `-icount`, which
+//!    re-executes some instructions): the executed addresses of the tick functions and
+//!    every function they reach, and every data access of those instructions
+//!    (address, size, load or store), in execution order.
 //!
 //! The trace is split into calls of each tick function by following calls and
 //! returns (tail calls stay at the same level), and each instruction is weighted by
-//! [`CycleModel`]; branches are costed taken or not from the next executed address.
+//! [`CycleModel`] (branches costed taken or not from the next executed address) and
+//! replayed on [`ChipModel`] for the chip's figure.
 use crate::cycles::{CycleModel, Flow, Timing, classify};
 use crate::disasm::Code;
 use crate::elf::{Function, function_at};
+use crate::memory::{Access, ChipModel, ChipState, Stalls};
 use crate::qemu;
 use anyhow::{Context, Result, bail};
 use std::collections::{BTreeMap, BTreeSet};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::process::Command;
 
 /// Instructions per SysTick count under `-icount shift=0` on mps2-an386 (25 MHz core
@@ -105,8 +108,10 @@ pub fn parse_bench(text: &str) -> Result<BenchReport> {
 pub struct Cost {
     /// Instructions executed.
     pub instructions: u64,
-    /// Estimated cycles.
+    /// Estimated cycles at zero wait states (the TRM tables alone).
     pub cycles: u64,
+    /// Estimated cycles on the chip ([`ChipModel`]: wait states, caches, FPU stall).
+    pub chip_cycles: u64,
 }
 
 /// One traced call of a tick function.
@@ -116,25 +121,98 @@ pub struct TickTrace {
     pub entry: u32,
     /// Whole tick: instructions and estimated cycles, callees included.
     pub total: Cost,
+    /// Where the chip model's extra cycles came from.
+    pub stalls: Stalls,
     /// Per function (self cost), by demangled name.
     pub per_function: BTreeMap<String, Cost>,
 }
 
-/// Splits an executed-address trace into calls of the `entries` and costs each.
+/// The executed instructions in order, each with its data accesses.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Trace {
+    /// Executed addresses (Thumb bit clear).
+    pub pcs: Vec<u32>,
+    /// `accesses[starts[i]..starts[i + 1]]` are the accesses of `pcs[i]`
+    /// (`starts.len() == pcs.len() + 1`).
+    starts: Vec<usize>,
+    /// Data accesses of all instructions, in order.
+    accesses: Vec<Access>,
+}
+
+impl Trace {
+    /// A trace without data accesses.
+    pub fn from_pcs(pcs: Vec<u32>) -> Trace {
+        let starts = vec![0; pcs.len() + 1];
+        Trace {
+            pcs,
+            starts,
+            accesses: Vec::new(),
+        }
+    }
+
+    /// The data accesses of the `i`-th executed instruction.
+    pub fn accesses_of(&self, i: usize) -> &[Access] {
+        &self.accesses[self.starts[i]..self.starts[i + 1]]
+    }
+
+    /// Number of data accesses in the trace.
+    pub fn access_count(&self) -> usize {
+        self.accesses.len()
+    }
+
+    /// Reads the trace plugin's records (`qemu-plugin/memtrace.c`): pairs of
+    /// little-endian words, `(0, pc)` per instruction, `(1 | shift << 8, addr)` per
+    /// load and `(2 | shift << 8, addr)` per store of `1 << shift` bytes.
+    pub fn from_records(bytes: &[u8]) -> Result<Trace> {
+        if !bytes.len().is_multiple_of(8) {
+            bail!(
+                "trace record file of {} bytes is not whole 8-byte records",
+                bytes.len()
+            );
+        }
+        let mut t = Trace::default();
+        for (n, rec) in bytes.chunks_exact(8).enumerate() {
+            let kind = u32::from_le_bytes([rec[0], rec[1], rec[2], rec[3]]);
+            let addr = u32::from_le_bytes([rec[4], rec[5], rec[6], rec[7]]);
+            match kind & 0xff {
+                0 => {
+                    t.starts.push(t.accesses.len());
+                    t.pcs.push(addr & !1);
+                }
+                k @ (1 | 2) if !t.pcs.is_empty() && (kind >> 8) <= 3 => {
+                    t.accesses.push(Access {
+                        addr,
+                        bytes: 1 << (kind >> 8),
+                        store: k == 2,
+                    });
+                }
+                _ => bail!("trace record {n}: cannot read kind {kind:#x} at {addr:#x}"),
+            }
+        }
+        t.starts.push(t.accesses.len());
+        Ok(t)
+    }
+}
+
+/// Splits an executed-address trace into calls of the `entries` and costs each
+/// with the zero-wait tables (`model`) and on the chip (`chip`, from an idle chip
+/// with empty caches at each call).
 ///
 /// A call starts when the trace reaches an entry address outside any call and ends
 /// at the return that matches it (calls and returns are counted; a tail call stays
 /// at the same level). Addresses outside any call are ignored.
 pub fn split_ticks(
-    trace: &[u32],
+    trace: &Trace,
     code: &Code,
     fns: &[Function],
     entries: &[u32],
     model: &CycleModel,
+    chip: &ChipModel,
 ) -> Result<Vec<TickTrace>> {
+    let pcs = &trace.pcs;
     let mut ticks = Vec::new();
-    let mut current: Option<(TickTrace, u32)> = None;
-    for (i, &pc) in trace.iter().enumerate() {
+    let mut current: Option<(TickTrace, u32, ChipState)> = None;
+    for (i, &pc) in pcs.iter().enumerate() {
         if current.is_none() {
             if !entries.contains(&pc) {
                 continue;
@@ -145,8 +223,9 @@ pub fn split_ticks(
                     ..TickTrace::default()
                 },
                 0,
+                ChipState::new(chip),
             ));
-        } else if entries.contains(&pc) && current.as_ref().is_some_and(|(t, _)| t.entry == pc) {
+        } else if entries.contains(&pc) && current.as_ref().is_some_and(|(t, _, _)| t.entry == pc) {
             bail!(
                 "the trace re-entered the tick at {pc:#x} before it returned: a callee is \
                  missing from the trace (an indirect call?) or the tick recurses"
@@ -156,17 +235,20 @@ pub fn split_ticks(
             bail!("traced address {pc:#x} is not an instruction in the disassembly");
         };
         let class = classify(instr)?;
-        let taken = trace
-            .get(i + 1)
-            .is_none_or(|&next| next != instr.next_addr());
-        let cycles = u64::from(model.cycles(&class, taken));
-        let (tick, depth) = current.as_mut().expect("inside a tick");
+        let taken = pcs.get(i + 1).is_none_or(|&next| next != instr.next_addr());
+        let table = model.cycles(&class, taken);
+        let cycles = u64::from(table);
+        let (tick, depth, state) = current.as_mut().expect("inside a tick");
+        let chip_cycles = state.step(chip, instr, table, trace.accesses_of(i));
         tick.total.instructions += 1;
         tick.total.cycles += cycles;
+        tick.total.chip_cycles += chip_cycles;
+        tick.stalls = state.stalls;
         let name = function_at(fns, pc).map_or("?", |f| f.name.as_str());
         let c = tick.per_function.entry(name.to_string()).or_default();
         c.instructions += 1;
         c.cycles += cycles;
+        c.chip_cycles += chip_cycles;
         match class.flow {
             Flow::Call if taken => *depth += 1,
             Flow::Return if taken => {
@@ -179,7 +261,7 @@ pub fn split_ticks(
             _ => {}
         }
     }
-    if let Some((t, _)) = current {
+    if let Some((t, _, _)) = current {
         bail!(
             "the trace ended inside the tick at {:#x} (the run was cut short?)",
             t.entry
@@ -232,8 +314,8 @@ pub fn reachable(code: &Code, fns: &[Function], entries: &[u32]) -> Result<(Vec<
     Ok((out, indirect))
 }
 
-/// QEMU `-dfilter` argument covering `fns` (merged where adjacent).
-pub fn dfilter(fns: &[Function]) -> String {
+/// Address ranges `[start, end)` covering `fns`, merged where adjacent.
+pub fn trace_ranges(fns: &[Function]) -> Vec<(u32, u32)> {
     let mut ranges: Vec<(u32, u32)> = Vec::new();
     for f in fns {
         match ranges.last_mut() {
@@ -242,26 +324,84 @@ pub fn dfilter(fns: &[Function]) -> String {
         }
     }
     ranges
+}
+
+/// The traced ranges as text (`0x2000+0xa,0x2010+0x2`: start + length).
+pub fn dfilter(fns: &[Function]) -> String {
+    trace_ranges(fns)
         .iter()
         .map(|(s, e)| format!("{s:#x}+{:#x}", e - s))
         .collect::<Vec<_>>()
         .join(",")
 }
 
-/// Runs `elf` under QEMU with an instruction trace restricted to `filter` and returns
-/// the executed addresses in order, and the program's semihosting output.
-pub fn run_trace(elf: &Path, filter: &str) -> Result<(Vec<u32>, String)> {
+/// Source of the QEMU trace plugin.
+const PLUGIN_SOURCE: &str = include_str!("../qemu-plugin/memtrace.c");
+
+/// Builds the QEMU trace plugin (`host-tests/qemu-plugin/memtrace.c`) with the
+/// host C compiler (`$CC`, default `cc`) into `target/qemu-plugin/`, once per
+/// version of its source, and returns the shared object's path.
+pub fn plugin() -> Result<PathBuf> {
+    let hash = PLUGIN_SOURCE
+        .bytes()
+        .fold(0xcbf2_9ce4_8422_2325_u64, |h, b| {
+            (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3)
+        });
+    let dir = crate::target::workspace_root()
+        .join("target")
+        .join("qemu-plugin");
+    let so = dir.join(format!("memtrace-{hash:016x}.so"));
+    if so.exists() {
+        return Ok(so);
+    }
+    std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+    let src = dir.join(format!("memtrace-{hash:016x}.c"));
+    std::fs::write(&src, PLUGIN_SOURCE).with_context(|| format!("writing {}", src.display()))?;
+    // Built beside its final name, then renamed: parallel runs never load half a file.
+    let tmp = dir.join(format!("memtrace-{hash:016x}.{}.tmp", std::process::id()));
+    let cc = std::env::var("CC").unwrap_or_else(|_| "cc".to_string());
+    let out = Command::new(&cc)
+        .args(["-O2", "-shared", "-fPIC", "-fvisibility=hidden", "-o"])
+        .arg(&tmp)
+        .arg(&src)
+        .output()
+        .with_context(|| {
+            format!("starting the C compiler `{cc}` for the QEMU trace plugin (Debian: gcc)")
+        })?;
+    if !out.status.success() {
+        bail!(
+            "building the QEMU trace plugin with `{cc}` failed: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+    std::fs::rename(&tmp, &so).with_context(|| format!("renaming to {}", so.display()))?;
+    Ok(so)
+}
+
+/// Runs `elf` under QEMU with the trace plugin recording the instructions inside
+/// `ranges` and their data accesses; returns the trace and the program's
+/// semihosting output.
+pub fn run_trace(elf: &Path, ranges: &[(u32, u32)]) -> Result<(Trace, String)> {
     qemu::require_qemu()?;
+    let plugin = plugin()?;
     static RUNS: std::sync::atomic::AtomicU32 = std::sync::atomic::AtomicU32::new(0);
     let run = RUNS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
     let dir = std::env::temp_dir().join(format!("fw-trace-{}-{run}", std::process::id()));
     std::fs::create_dir_all(&dir)?;
-    let log = dir.join(format!(
-        "{}.log",
-        elf.file_name().and_then(|n| n.to_str()).unwrap_or("elf")
-    ));
-    // The run without `-icount`: that option makes QEMU re-execute (and log again)
-    // some instructions.
+    let records = dir.join("trace.bin");
+    let range_file = dir.join("ranges.txt");
+    let text: String = ranges
+        .iter()
+        .map(|(s, e)| format!("{s:x} {e:x}\n"))
+        .collect();
+    std::fs::write(&range_file, text)?;
+    let mut arg = std::ffi::OsString::from(plugin);
+    arg.push(",out=");
+    arg.push(&records);
+    arg.push(",ranges=");
+    arg.push(&range_file);
+    // Without `-icount`, which makes QEMU re-execute (and report again) some
+    // instructions.
     let out = Command::new(qemu::QEMU)
         .args([
             "-M",
@@ -269,55 +409,43 @@ pub fn run_trace(elf: &Path, filter: &str) -> Result<(Vec<u32>, String)> {
             "-nographic",
             "-semihosting-config",
             "enable=on,target=native",
-        ])
-        .args([
             "-no-reboot",
-            "-singlestep",
-            "-d",
-            "exec,nochain",
-            "-dfilter",
-            filter,
-            "-D",
+            "-plugin",
         ])
-        .arg(&log)
+        .arg(arg)
         .arg("-kernel")
         .arg(elf)
         .output()
         .with_context(|| format!("starting {}", qemu::QEMU))?;
     let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
     if !out.status.success() {
+        let _ = std::fs::remove_dir_all(&dir);
         bail!(
-            "traced run of {} failed ({}): {stdout}",
+            "traced run of {} failed ({}): {stdout} {}",
             elf.display(),
-            out.status
+            out.status,
+            String::from_utf8_lossy(&out.stderr)
         );
     }
-    let text =
-        std::fs::read_to_string(&log).with_context(|| format!("reading {}", log.display()))?;
+    let bytes =
+        std::fs::read(&records).with_context(|| format!("reading {}", records.display()))?;
     let _ = std::fs::remove_dir_all(&dir);
-    Ok((parse_exec_log(&text)?, stdout))
-}
-
-/// Parses QEMU's `-d exec` log: `Trace 0: 0xHOST [FLAGS/PC/...] symbol`, one line per
-/// executed block (one instruction each under `-singlestep`).
-pub fn parse_exec_log(text: &str) -> Result<Vec<u32>> {
-    let mut pcs = Vec::new();
-    for line in text.lines().filter(|l| l.starts_with("Trace ")) {
-        let Some(fields) = line.split('[').nth(1) else {
-            continue;
-        };
-        let Some(pc) = fields.split('/').nth(1) else {
-            bail!("cannot read the PC in QEMU log line {line:?}");
-        };
-        pcs.push(u32::from_str_radix(pc, 16).with_context(|| format!("QEMU log line {line:?}"))?);
-    }
-    Ok(pcs)
+    Ok((Trace::from_records(&bytes)?, stdout))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::disasm::parse_objdump;
+
+    /// Memory as fast as the tables assume: the chip figure equals the table figure.
+    fn flat() -> ChipModel {
+        ChipModel {
+            flash: crate::memory::FlashTiming::ZERO_WAIT,
+            map: crate::memory::MemoryMap::qemu_image_on_g474(),
+            fpu_result_stall: false,
+        }
+    }
 
     /// Walks a straight-line loop body `iterations` times: the addresses QEMU would
     /// log for `entry: prologue; loop: body; subs; bne loop; epilogue; bx lr`.
@@ -371,8 +499,16 @@ mod tests {
             start: 0x1000,
             end,
         }];
-        let trace = walk_loop(&code, 0x1000, n);
-        let ticks = split_ticks(&trace, &code, &fns, &[0x1000], &CycleModel::default()).unwrap();
+        let trace = Trace::from_pcs(walk_loop(&code, 0x1000, n));
+        let ticks = split_ticks(
+            &trace,
+            &code,
+            &fns,
+            &[0x1000],
+            &CycleModel::default(),
+            &flat(),
+        )
+        .unwrap();
         assert_eq!(ticks.len(), 1);
         ticks.into_iter().next().unwrap()
     }
@@ -444,8 +580,9 @@ mod tests {
             start: 0,
             end,
         }];
-        let trace = walk_loop(&code, 0, n);
-        let ticks = split_ticks(&trace, &code, &fns, &[0], &CycleModel::default()).unwrap();
+        let trace = Trace::from_pcs(walk_loop(&code, 0, n));
+        let ticks =
+            split_ticks(&trace, &code, &fns, &[0], &CycleModel::default(), &flat()).unwrap();
         assert_eq!(ticks.len(), 1);
         ticks.into_iter().next().unwrap()
     }
@@ -495,32 +632,82 @@ mod tests {
         let mut trace = one.to_vec();
         trace.push(0x2010);
         trace.extend(one);
-        let ticks = split_ticks(&trace, &code, &fns, &[0x2000], &CycleModel::default()).unwrap();
+        let trace = Trace::from_pcs(trace);
+        let ticks = split_ticks(
+            &trace,
+            &code,
+            &fns,
+            &[0x2000],
+            &CycleModel::default(),
+            &flat(),
+        )
+        .unwrap();
         assert_eq!(ticks.len(), 2);
         // push 3 + bl 2 + bx lr 2 + b.w 2 + pop {r7,pc} 1+2+1 = 13
         assert_eq!(
             ticks[0].total,
             Cost {
                 instructions: 5,
-                cycles: 13
+                cycles: 13,
+                chip_cycles: 13
             }
         );
         assert_eq!(
             ticks[0].per_function["g"],
             Cost {
                 instructions: 1,
-                cycles: 2
+                cycles: 2,
+                chip_cycles: 2
             }
         );
         // A trace cut inside the tick is an error, not a short tick.
-        assert!(split_ticks(&one[..3], &code, &fns, &[0x2000], &CycleModel::default()).is_err());
+        let cut = Trace::from_pcs(one[..3].to_vec());
+        assert!(
+            split_ticks(
+                &cut,
+                &code,
+                &fns,
+                &[0x2000],
+                &CycleModel::default(),
+                &flat()
+            )
+            .is_err()
+        );
     }
 
     #[test]
-    fn reads_qemu_exec_log_and_bench_report() {
-        let log = "Trace 0: 0x7f15c002c500 [00800400/00001904/00000010/ff000201] sym\n\
-                   Trace 0: 0x7f15c002c6c0 [00800400/00001906/00000010/ff000201] sym\n";
-        assert_eq!(parse_exec_log(log).unwrap(), vec![0x1904, 0x1906]);
+    fn reads_trace_records_and_bench_report() {
+        let word = |w: u32| w.to_le_bytes();
+        let mut rec = Vec::new();
+        for (k, a) in [
+            (0, 0x1905),
+            (0x201, 0x2000_0010),
+            (0x102, 0x2000_0020),
+            (0, 0x1906),
+        ] {
+            rec.extend(word(k));
+            rec.extend(word(a));
+        }
+        let t = Trace::from_records(&rec).unwrap();
+        assert_eq!(t.pcs, vec![0x1904, 0x1906]);
+        assert_eq!(
+            t.accesses_of(0),
+            &[
+                Access {
+                    addr: 0x2000_0010,
+                    bytes: 4,
+                    store: false
+                },
+                Access {
+                    addr: 0x2000_0020,
+                    bytes: 2,
+                    store: true
+                }
+            ]
+        );
+        assert!(t.accesses_of(1).is_empty());
+        assert!(Trace::from_records(&rec[..12]).is_err());
+        assert!(Trace::from_records(&[7, 0, 0, 0, 0, 0, 0, 0]).is_err());
         let rep = "@bench 10\n@workload dot64 0x00001905 64 71 1 41d5380f 64\n@pass\n";
         let b = parse_bench(rep).unwrap();
         assert_eq!(b.ticks, 10);

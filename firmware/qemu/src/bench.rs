@@ -25,6 +25,10 @@ use cortex_m_semihosting::hio;
 use firmware::bench::{Visitor, Workload, visit_all};
 
 mod exit;
+/// The start-up copy of the CCM SRAM code, as on the board.
+#[path = "../../src/bin/shared/ccm.rs"]
+#[allow(unsafe_code)]
+mod ccm;
 use exit::{fail, pass};
 
 /// Ticks per workload (each traced; keep the trace short).
@@ -120,6 +124,7 @@ impl Visitor for Driver {
 
 #[entry]
 fn main() -> ! {
+    ccm::copy_code();
     let Some(cp) = cortex_m::Peripherals::take() else {
         fail()
     };

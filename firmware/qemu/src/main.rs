@@ -13,6 +13,10 @@ use firmware::model::GoldenModel;
 use firmware::quant::golden::STEPS;
 
 mod exit;
+/// The start-up copy of the CCM SRAM code, as on the board.
+#[path = "../../src/bin/shared/ccm.rs"]
+#[allow(unsafe_code)]
+mod ccm;
 use exit::{fail, pass};
 
 /// Line-buffered semihosting writer: one host call per ~1 KiB, not per line.
@@ -52,6 +56,7 @@ impl Report {
 
 #[entry]
 fn main() -> ! {
+    ccm::copy_code();
     let mut out = Report::new();
 
     out.line(format_args!("@suite math {}", golden::MATH_POINTS));

@@ -43,8 +43,18 @@ use stm32g4::stm32g474::{self as pac, interrupt};
 #[cfg(feature = "defmt")]
 use {defmt_rtt as _, panic_probe as _};
 
+/// The start-up copy of the CCM SRAM code (raw copy between linker-script
+/// addresses).
+#[path = "shared/ccm.rs"]
+#[allow(unsafe_code)]
+mod ccm;
+/// The clock set-up shared with the bench binary (raw multi-bit `FLASH_ACR`,
+/// `PLLCFGR` and `CFGR` field writes the PAC marks unsafe).
+#[path = "shared/clock.rs"]
+#[allow(unsafe_code)]
+mod clock;
 /// Core clock: HSI16 through the PLL (boost mode).
-const CORE_CLOCK_HZ: u32 = 170_000_000;
+const CORE_CLOCK_HZ: u32 = clock::CORE_CLOCK_HZ;
 /// Control tick rate (SysTick): the compensator tick, at the rate the compiled-in
 /// network was trained for.
 const TICK_HZ: u32 = compiled::CONTROL_RATE_HZ;
@@ -167,6 +177,7 @@ static COMPENSATOR_DUE: AtomicBool = AtomicBool::new(false);
 
 #[entry]
 fn main() -> ! {
+    ccm::copy_code();
     let (Some(mut cp), Some(dp)) = (cortex_m::Peripherals::take(), pac::Peripherals::take()) else {
         cortex_m::asm::udf();
     };
@@ -284,7 +295,11 @@ fn SysTick() {
 }
 
 /// The PWM-rate control interrupt: ADC1 injected end of sequence (TIM1-triggered).
+/// Runs from CCM SRAM (the section `ccm::copy_code` fills before interrupts are
+/// enabled).
 #[interrupt]
+#[allow(unsafe_code)]
+#[unsafe(link_section = ".ccmram_text")]
 fn ADC1_2() {
     static mut CONTEXT: Option<PwmContext> = None;
     let start = DWT::cycle_count();
@@ -354,9 +369,9 @@ unsafe fn HardFault(_frame: &ExceptionFrame) -> ! {
     }
 }
 
-/// Register-level peripheral set-up and access (the binary's only `unsafe`: raw
-/// multi-bit field writes the PAC marks unsafe, and byte-wide SPI/USART data
-/// register access).
+/// Register-level peripheral set-up and access (with `clock`, the binary's only
+/// `unsafe`: raw multi-bit field writes the PAC marks unsafe, and byte-wide
+/// SPI/USART data register access).
 #[allow(unsafe_code)]
 mod hw {
     use super::pac;
@@ -388,40 +403,7 @@ mod hw {
     pub fn init(dp: pac::Peripherals, arr: u16) -> Board {
         let rcc = &dp.RCC;
         // 170 MHz: boost mode, 4 flash wait states, HSI16 / 4 * 85 / 2.
-        rcc.apb1enr1().modify(|_, w| w.pwren().set_bit());
-        dp.PWR.cr5().modify(|_, w| w.r1mode().clear_bit());
-        dp.FLASH.acr().modify(|_, w| {
-            unsafe { w.latency().bits(4) }
-                .prften()
-                .set_bit()
-                .icen()
-                .set_bit()
-                .dcen()
-                .set_bit()
-        });
-        spin_until(|| dp.FLASH.acr().read().latency().bits() == 4);
-        rcc.pllcfgr().write(|w| {
-            unsafe {
-                w.pllsrc()
-                    .bits(0b10)
-                    .pllm()
-                    .bits(3)
-                    .plln()
-                    .bits(85)
-                    .pllr()
-                    .bits(0)
-            }
-            .pllren()
-            .set_bit()
-        });
-        rcc.cr().modify(|_, w| w.pllon().set_bit());
-        spin_until(|| rcc.cr().read().pllrdy().bit_is_set());
-        // Switch through AHB / 2 (the reference manual's boost-mode sequence).
-        rcc.cfgr().modify(|_, w| unsafe { w.hpre().bits(0b1000) });
-        rcc.cfgr().modify(|_, w| unsafe { w.sw().bits(0b11) });
-        spin_until(|| rcc.cfgr().read().sws().bits() == 0b11);
-        cortex_m::asm::delay(200);
-        rcc.cfgr().modify(|_, w| unsafe { w.hpre().bits(0) });
+        let _ = super::clock::boost_170_mhz(rcc, &dp.PWR, &dp.FLASH);
 
         rcc.ahb2enr().modify(|_, w| {
             w.gpioaen()

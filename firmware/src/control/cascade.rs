@@ -163,7 +163,8 @@ impl PositionVelocityCascade {
     }
 
     /// One outer-loop step: reference and measured position/velocity -> q-current
-    /// command, A (within +-max_current_a).
+    /// command, A (within +-max_current_a). On the target it runs from CCM SRAM.
+    #[cfg_attr(target_os = "none", unsafe(link_section = ".ccmram_text"))]
     pub fn step(&mut self, reference: &JointReference, q_rad: f32, qd_rad_s: f32) -> f32 {
         let v_cmd = self
             .position

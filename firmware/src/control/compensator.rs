@@ -326,7 +326,9 @@ impl<const J: usize, M: TorquePredictor<J>, L: TorquePredictor<J>> Compensator<J
     }
 
     /// One compensator tick: this joint's own state and the local bus time ->
-    /// the limited feedforward torque and q current.
+    /// the limited feedforward torque and q current. On the target it runs from CCM
+    /// SRAM (`.ccmram_text`).
+    #[cfg_attr(target_os = "none", unsafe(link_section = ".ccmram_text"))]
     pub fn tick(&mut self, own: &JointState, now_us: u32) -> CompensatorOutput {
         let cfg = self.config;
         let own_j = cfg.own_joint;

@@ -280,7 +280,9 @@ impl CurrentLoop {
 
     /// One step at the PWM rate: measured phase currents a and b (A, balanced),
     /// electrical angle (rad), electrical speed (rad/s), bus voltage (V) and the dq
-    /// current references (A) -> three duties. Inputs are assumed validated.
+    /// current references (A) -> three duties. Inputs are assumed validated. On the
+    /// target it runs from CCM SRAM.
+    #[cfg_attr(target_os = "none", unsafe(link_section = ".ccmram_text"))]
     pub fn step(
         &mut self,
         i_ab_a: [f32; 2],

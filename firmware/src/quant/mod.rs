@@ -560,8 +560,10 @@ impl<
     }
 
     /// One control tick: advances `state` by the raw (unnormalised) `input` and
-    /// returns the de-normalised outputs.
+    /// returns the de-normalised outputs. On the target it runs from CCM SRAM
+    /// (`.ccmram_text`, copied there at start-up).
     #[inline(never)]
+    #[cfg_attr(target_os = "none", unsafe(link_section = ".ccmram_text"))]
     pub fn step(&self, state: &mut QuantState<ZQ, H>, input: &[f32; I]) -> [f32; O] {
         let () = Self::SHAPE;
         let mut xq = [[0u32; 2]; IQ];
@@ -905,7 +907,9 @@ impl<
     }
 
     /// One control tick: advances `state` by the raw `input`, returns the outputs.
+    /// On the target it runs from CCM SRAM (`.ccmram_text`).
     #[inline(never)]
+    #[cfg_attr(target_os = "none", unsafe(link_section = ".ccmram_text"))]
     pub fn step(&self, state: &mut F32State<Z, H>, input: &[f32; I]) -> [f32; O] {
         let () = Self::SHAPE;
         let mut xn = [0.0f32; I];

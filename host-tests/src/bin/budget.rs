@@ -1,9 +1,11 @@
 //! Size and cycle budget table of the firmware: builds the target binaries, sizes
 //! them, estimates each workload's Cortex-M4 cycles from a QEMU instruction trace
-//! weighted by the TRM cycle tables, and compares with `host-tests/budgets.toml`.
+//! weighted by the TRM cycle tables and by the STM32G474's flash, caches and FPU
+//! stall, and compares the STM32G474 figure with `host-tests/budgets.toml`.
 //!
 //! `cargo run -p host-tests --bin budget [-- --json] [--budgets FILE]
-//! [--opt-level 2|3|s|z] [--pipeline-refill P]`; exits 1 when a budget is exceeded.
+//! [--opt-level 2|3|s|z] [--pipeline-refill P] [--wait-states N] [--single-bank]
+//! [--no-fpu-stall]`; exits 1 when a budget is exceeded.
 use anyhow::{Context, Result, bail};
 use host_tests::budget::{self, Budgets, Options};
 use std::path::PathBuf;
@@ -33,9 +35,13 @@ fn run() -> Result<bool> {
             "--budgets" => file = PathBuf::from(value()?),
             "--opt-level" => opts.opt_level = Some(value()?),
             "--pipeline-refill" => opts.model.pipeline_refill = value()?.parse()?,
+            "--wait-states" => opts.chip.flash.wait_states = value()?.parse()?,
+            "--single-bank" => opts.chip.flash.read_bytes = 16,
+            "--no-fpu-stall" => opts.chip.fpu_result_stall = false,
             "-h" | "--help" => {
                 println!(
-                    "usage: budget [--json] [--json-file FILE] [--budgets FILE] [--opt-level 2|3|s|z] [--pipeline-refill P]"
+                    "usage: budget [--json] [--json-file FILE] [--budgets FILE] [--opt-level 2|3|s|z] \
+                     [--pipeline-refill P] [--wait-states N] [--single-bank] [--no-fpu-stall]"
                 );
                 return Ok(true);
             }
