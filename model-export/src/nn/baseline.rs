@@ -244,11 +244,12 @@ mod tests {
     #[test]
     fn motion_memory_holds_the_last_motion_and_the_presliding_states() {
         let qd = [0.0, 0.3, 0.001, 0.0, -0.2, -0.004, 0.0, 0.01];
-        let q = [0.0, 0.05, 0.05, 0.05, 0.049, 0.049, 0.049, 0.1];
+        let q = [0.0, 0.05, 0.05, 0.05, 0.048, 0.048, 0.048, 0.1];
         let m = motion_memory(&q, &qd);
         let rest: Vec<f32> = m.iter().map(|x| x.0).collect();
         assert_eq!(rest, [0.0, 0.0, 1.0, 1.0, 0.0, -1.0, -1.0, 0.0]);
-        // 50 mrad forward saturates every element; 1 mrad back sweeps the 1 mrad one.
+        // 50 mrad forward saturates every element; 2 mrad back sweeps the 1 mrad one
+        // from +1 to -1 and the 10 mrad one by 0.2.
         assert_eq!(m[1].1, [1.0; 4]);
         assert!(m[4].1[0] < -0.99 && (m[4].1[2] - 0.8).abs() < 1e-3);
     }
