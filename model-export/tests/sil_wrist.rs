@@ -160,7 +160,9 @@ fn cli_simulate_identify_sil_writes_markdown_and_json() {
     let header = std::fs::read_to_string(&feat).unwrap();
     assert!(header.starts_with(
         "time_s,q_j4,q_j5,q_j6,qd_j4,qd_j5,qd_j6,tau_meas_j4,tau_meas_j5,tau_meas_j6,tau_model_j4,tau_model_j5,tau_model_j6,\
-         qdd_j4,qdd_j5,qdd_j6,sin_q_j4,sin_q_j5,sin_q_j6,cos_q_j4,cos_q_j5,cos_q_j6,rest_dir_j4,rest_dir_j5,rest_dir_j6\n"
+         qdd_j4,qdd_j5,qdd_j6,sin_q_j4,sin_q_j5,sin_q_j6,cos_q_j4,cos_q_j5,cos_q_j6,rest_dir_j4,rest_dir_j5,rest_dir_j6,\
+         slip_1mrad_j4,slip_1mrad_j5,slip_1mrad_j6,slip_3mrad_j4,slip_3mrad_j5,slip_3mrad_j6,\
+         slip_10mrad_j4,slip_10mrad_j5,slip_10mrad_j6,slip_30mrad_j4,slip_30mrad_j5,slip_30mrad_j6\n"
     ));
     cli(&[
         "sil",
