@@ -130,6 +130,16 @@ fn graphs_outside_the_supported_network_are_refused_naming_the_node() {
         }),
         "feeds 2 nodes",
     );
+    refused(
+        "a hostile hidden size",
+        &edited(|m| {
+            let n = node_mut(m, "LSTM");
+            for a in n.attribute.iter_mut().filter(|a| a.name == "hidden_size") {
+                a.i = i64::MAX;
+            }
+        }),
+        "node '/lstm/LSTM' (LSTM): hidden_size 9223372036854775807 is not in 1..=65536",
+    );
     let bytes = std::fs::read(fixture("torch_lstm.onnx")).unwrap();
     refused(
         "a truncated file",

@@ -264,6 +264,9 @@ pub fn parse_onnx_model(bytes: &[u8]) -> Result<LstmModel> {
     Ok(m)
 }
 
+/// Largest LSTM hidden size read (far above what a drive runs; bounds the shape checks).
+const MAX_HIDDEN: usize = 1 << 16;
+
 /// Nodes the exporter uses to build the zero initial state from the input's shape.
 const SHAPE_OPS: [&str; 9] = [
     "Shape",
@@ -475,6 +478,9 @@ fn walk<'a>(g: &mut Graph<'a>, x: &'a str, meta: &HashMap<&str, &str>) -> Result
     }
     let label = node_label(n);
     let h = usize::try_from(attr_i(n, "hidden_size", 0)).unwrap_or(0);
+    if h == 0 || h > MAX_HIDDEN {
+        bail!("{label}: hidden_size {h} is not in 1..={MAX_HIDDEN}");
+    }
     let layout = attr_i(n, "layout", 0);
     let direction = attr(n, "direction").map(|a| String::from_utf8_lossy(&a.s).into_owned());
     if direction.as_deref().is_some_and(|d| d != "forward") {
@@ -515,7 +521,7 @@ fn walk<'a>(g: &mut Graph<'a>, x: &'a str, meta: &HashMap<&str, &str>) -> Result
         .constant(input(2).unwrap_or(""))
         .with_context(|| format!("{label}: R is not a constant"))?
         .clone();
-    if h == 0 || w.dims != [1, 4 * h, e] || r.dims != [1, 4 * h, h] {
+    if w.dims != [1, 4 * h, e] || r.dims != [1, 4 * h, h] {
         bail!(
             "{label}: W {:?} and R {:?} for hidden_size {h} and {e} inputs (one forward layer: [1, 4H, E] and [1, 4H, H])",
             w.dims,
