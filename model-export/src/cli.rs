@@ -50,8 +50,9 @@ pub enum Command {
     /// Evaluate a model by streaming the firmware f32 step over whole CSV logs: per output
     /// RMS before (identified model only) and after compensation, reduction, persistence.
     Evaluate(EvaluateArgs),
-    /// Import a model saved from PyTorch (safetensors, PyTorch names; see the README),
-    /// validate it and write it in our format; optionally check it against a reference.
+    /// Import a model saved from PyTorch (safetensors with PyTorch names, or ONNX from
+    /// `torch.onnx.export`; see the README), validate it and write it in our format;
+    /// optionally check it against a reference.
     Import(ImportArgs),
     /// Design an optimised Fourier excitation trajectory (coefficients JSON, playback CSV, plot).
     Excite(Box<crate::excite::cli::ExciteArgs>),
@@ -217,7 +218,7 @@ pub struct EvaluateArgs {
 /// `import` options.
 #[derive(Debug, Args)]
 pub struct ImportArgs {
-    /// Safetensors written from PyTorch.
+    /// Safetensors written from PyTorch, or an ONNX model (`.onnx`) exported from it.
     #[arg(long)]
     pub torch: PathBuf,
     /// Our model file to write.
@@ -471,7 +472,18 @@ pub fn check_reference(model: &crate::nn::LstmModel, reference: &std::path::Path
 }
 
 fn import_cmd(a: ImportArgs) -> Result<()> {
-    let model = io::read_model_with(&a.torch, a.input_activation.as_deref())?;
+    let model = if crate::nn::onnx::is_onnx(&a.torch) {
+        // The graph says which activation follows the input layer.
+        if let Some(act) = &a.input_activation {
+            bail!(
+                "{}: --input-activation {act} is for safetensors files; an ONNX graph names its own",
+                a.torch.display()
+            );
+        }
+        crate::nn::onnx::read_onnx_model(&a.torch)?
+    } else {
+        io::read_model_with(&a.torch, a.input_activation.as_deref())?
+    };
     println!(
         "{}: {:?}, preset `{}`",
         a.torch.display(),

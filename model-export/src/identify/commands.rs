@@ -5,7 +5,9 @@ use super::{IdentifyOptions, Weighting};
 use crate::base::BaseParameters;
 pub use crate::dynamics::firmware_model::FirmwareModel;
 use crate::logs::args::{LayoutArgs, PreprocessArgs};
-use crate::logs::{LogLayout, PreprocessOptions, Samples, preprocess, read_log, sha256_file};
+use crate::logs::{
+    BagOptions, LogLayout, PreprocessOptions, Samples, preprocess, read_robot_log, sha256_file,
+};
 use crate::model_file::{
     BaseParameter, ErrorReport, JointFriction, LockedJoint, LogRef, MODEL_SCHEMA_VERSION,
     ModelFile, ModelTermsRef, RobotRef, write_atomic,
@@ -65,11 +67,11 @@ pub struct IdentifyArgs {
     /// default robot (model-export/robots/default.toml).
     #[arg(long, default_value = crate::sim::cli::DEFAULT_ROBOT)]
     pub robot: PathBuf,
-    /// Identification logs (CSV), one or more.
-    #[arg(long = "log", required = true, value_name = "CSV")]
+    /// Identification logs (CSV, or ROS 2 recordings: rosbag2 .mcap), one or more.
+    #[arg(long = "log", required = true, value_name = "LOG")]
     pub logs: Vec<PathBuf>,
-    /// Validation logs (CSV): predicted with the identified model, not used to fit.
-    #[arg(long = "validate", value_name = "CSV")]
+    /// Validation logs (CSV or .mcap): predicted with the identified model, not used to fit.
+    #[arg(long = "validate", value_name = "LOG")]
     pub validation: Vec<PathBuf>,
     /// Output model file (JSON), written atomically.
     #[arg(long, short)]
@@ -105,8 +107,9 @@ pub struct TorqueArgs {
     /// parameters (and its friction, if any) are used.
     #[arg(long)]
     pub model: Option<PathBuf>,
-    /// Input: a log or a CSV of states (see --layout states).
-    #[arg(long = "log", value_name = "CSV")]
+    /// Input: a log (CSV, or a ROS 2 recording: rosbag2 .mcap) or a CSV of states (see
+    /// --layout states).
+    #[arg(long = "log", value_name = "LOG")]
     pub log: PathBuf,
     /// Output CSV: time, tau_model per modelled joint [N·m] (firmware f32 model), and
     /// the measured torque per modelled joint when the input has effort columns.
@@ -234,25 +237,33 @@ pub fn load_robot(path: &Path, j: &JointArgs) -> anyhow::Result<Robot> {
     Ok(robot)
 }
 
+/// Names of the robot's joints, in order (ROS 2 recordings are matched by them).
+fn joint_names(robot: &Robot) -> Vec<String> {
+    robot.joints.iter().map(|j| j.name.clone()).collect()
+}
+
+/// Drive gains [N·m/A] a log's effort was read with; `None`: its effort is torque.
+type DriveGains = Option<Vec<f64>>;
+
+/// Reads and preprocesses logs; also returns the drive gains each was read with.
 fn load_logs(
     paths: &[PathBuf],
     layout: &LogLayout,
+    bag: &BagOptions,
     pre: &PreprocessOptions,
-    dof: usize,
-) -> anyhow::Result<Vec<Samples>> {
-    if layout.n_joints() != dof {
-        bail!(
-            "the log layout has {} joints but the robot has {dof} (use --log-joints)",
-            layout.n_joints()
-        );
-    }
-    paths
+    robot: &Robot,
+) -> anyhow::Result<(Vec<Samples>, Vec<DriveGains>)> {
+    let names = joint_names(robot);
+    let mut gains = Vec::with_capacity(paths.len());
+    let samples = paths
         .iter()
         .map(|p| {
-            let raw = read_log(p, layout)?;
+            let raw = read_robot_log(p, layout, bag, &names)?;
+            gains.push(raw.drive_gains_nm_per_a.clone());
             Ok(preprocess(&raw, pre)?)
         })
-        .collect()
+        .collect::<anyhow::Result<_>>()?;
+    Ok((samples, gains))
 }
 
 fn log_refs(logs: &[Samples]) -> Vec<LogRef> {
@@ -308,8 +319,21 @@ pub fn identify(a: &IdentifyArgs) -> anyhow::Result<()> {
         sha256_file(&a.robot).with_context(|| format!("{}: cannot read", a.robot.display()))?;
     let layout = a.layout.layout()?;
     let pre = a.pre.options()?;
-    let id_logs = load_logs(&a.logs, &layout, &pre, robot.dof())?;
-    let val_logs = load_logs(&a.validation, &layout, &pre, robot.dof())?;
+    let bag = a.layout.bag_options();
+    let (id_logs, id_gains) = load_logs(&a.logs, &layout, &bag, &pre, &robot)?;
+    let (val_logs, _) = load_logs(&a.validation, &layout, &bag, &pre, &robot)?;
+    // The model file records one set of drive gains: the identification logs' effort
+    // must all be torque or all current with the same gains.
+    if let Some(k) = id_gains.iter().position(|g| *g != id_gains[0]) {
+        bail!(
+            "{} and {} are read with different drive gains ({:?} and {:?}; none = torque): \
+             identify on logs of one kind",
+            a.logs[0].display(),
+            a.logs[k].display(),
+            id_gains[0],
+            id_gains[k]
+        );
+    }
     for s in id_logs.iter() {
         if s.torque_nm.is_none() {
             bail!(
@@ -447,13 +471,7 @@ pub fn identify(a: &IdentifyArgs) -> anyhow::Result<()> {
             JointMode::Modelled => None,
         })
         .collect();
-    let drive_gains_nm_per_a = match &layout.effort {
-        Some(crate::logs::Effort::CurrentA {
-            drive_gains_nm_per_a,
-            ..
-        }) => drive_gains_nm_per_a.clone(),
-        _ => Vec::new(),
-    };
+    let drive_gains_nm_per_a = id_gains.first().cloned().flatten().unwrap_or_default();
     let file = ModelFile {
         schema_version: MODEL_SCHEMA_VERSION,
         robot: RobotRef {
@@ -616,7 +634,12 @@ pub fn torque(a: &TorqueArgs) -> anyhow::Result<()> {
     let (robot, theta) = load_model_robot(&a.robot, a.model.as_deref(), &a.joints)?;
     let fw = FirmwareModel::build(&robot, &theta)?;
     let joints = robot.modelled_joints();
-    let raw = read_log(&a.log, &layout)?;
+    let raw = read_robot_log(
+        &a.log,
+        &layout,
+        &a.layout.bag_options(),
+        &joint_names(&robot),
+    )?;
     if raw.q_rad.len() != robot.dof() {
         bail!(
             "{}: the log has {} joints but the robot has {}",

@@ -1,7 +1,9 @@
 //! Command-line options that describe a log's columns and its preprocessing
 //! (shared by `identify` and `torque`).
 
-use super::{ColumnRef, Effort, LogLayout, PreprocessOptions, UR10E_DRIVE_GAINS_NM_PER_A};
+use super::{
+    BagOptions, ColumnRef, Effort, LogLayout, PreprocessOptions, UR10E_DRIVE_GAINS_NM_PER_A, rosbag,
+};
 use clap::{Args, ValueEnum};
 
 /// Starting point for the column layout.
@@ -30,7 +32,9 @@ pub enum HeaderMode {
 }
 
 /// Log column layout options. Columns are 1-based indices or header names; lists are
-/// comma separated, one entry per joint of the log.
+/// comma separated, one entry per joint of the log. A ROS 2 recording (`.mcap`) needs
+/// none of them: its joints are matched by name (`--topic`, and `--drive-gains` when its
+/// effort is motor current).
 #[derive(Debug, Clone, Args)]
 pub struct LayoutArgs {
     /// Column layout preset; the column options below override its columns.
@@ -72,6 +76,10 @@ pub struct LayoutArgs {
     /// Data rows to skip at the start of each log (after any header), e.g. corrupt rows.
     #[arg(long, default_value_t = 0)]
     pub skip_rows: usize,
+    /// ROS 2 recordings (rosbag2 MCAP): the sensor_msgs/msg/JointState topic. Its
+    /// effort[] is joint torque [N·m], or motor current [A] when --drive-gains is given.
+    #[arg(long, default_value = rosbag::DEFAULT_TOPIC)]
+    pub topic: String,
 }
 
 impl LayoutArgs {
@@ -137,6 +145,17 @@ impl LayoutArgs {
         }
         l.skip_rows = self.skip_rows;
         Ok(l)
+    }
+}
+
+impl LayoutArgs {
+    /// How to read ROS 2 recordings: the topic, and the drive gains only when given
+    /// explicitly (a recording's effort is torque unless the user says it is current).
+    pub fn bag_options(&self) -> BagOptions {
+        BagOptions {
+            topic: self.topic.clone(),
+            drive_gains_nm_per_a: self.drive_gains.clone(),
+        }
     }
 }
 

@@ -1,4 +1,5 @@
-//! Robot logs: reading CSV files into joint signals, and preprocessing them into
+//! Robot logs: reading CSV files and ROS 2 recordings (rosbag2 MCAP, [`rosbag`]) into
+//! joint signals, and preprocessing them into
 //! identification samples (uniform resampling, zero-phase filtering, derivatives,
 //! trimming of rest periods, optional Kalman filtering of the motor current).
 //!
@@ -11,6 +12,7 @@
 
 pub mod args;
 pub mod preprocess;
+pub mod rosbag;
 pub mod signal;
 
 use sha2::{Digest, Sha256};
@@ -18,6 +20,7 @@ use std::fmt;
 use std::path::{Path, PathBuf};
 
 pub use preprocess::{MAX_GRID_SAMPLES, PreprocessOptions, Samples, preprocess};
+pub use rosbag::BagOptions;
 
 /// One column of a log: by header name or by 1-based index.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -214,7 +217,35 @@ pub fn sha256_hex(bytes: &[u8]) -> String {
     digest.iter().map(|b| format!("{b:02x}")).collect()
 }
 
-/// Reads a log with the given layout. Rejects malformed rows, non-finite cells,
+/// Reads a robot log: a ROS 2 recording (rosbag2 MCAP, by extension or content: see
+/// [`rosbag::is_mcap`]) with `bag`, its joints matched by name to `joint_names` (the
+/// robot's joints, in order), or a CSV file with `layout`.
+pub fn read_robot_log(
+    path: &Path,
+    layout: &LogLayout,
+    bag: &BagOptions,
+    joint_names: &[String],
+) -> Result<RawLog, LogError> {
+    if rosbag::is_mcap(path) {
+        rosbag::read_bag(path, bag, joint_names)
+    } else {
+        if layout.n_joints() != joint_names.len() {
+            return Err(LogError::new(
+                path,
+                None,
+                None,
+                format!(
+                    "the log layout has {} joints but the robot has {} (use --log-joints)",
+                    layout.n_joints(),
+                    joint_names.len()
+                ),
+            ));
+        }
+        read_log(path, layout)
+    }
+}
+
+/// Reads a CSV log with the given layout. Rejects malformed rows, non-finite cells,
 /// non-increasing time and missing columns, naming file, line and field.
 pub fn read_log(path: &Path, layout: &LogLayout) -> Result<RawLog, LogError> {
     let bytes = std::fs::read(path)

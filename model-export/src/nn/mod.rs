@@ -8,6 +8,7 @@ pub mod fused_net;
 pub mod gemm;
 pub mod io;
 pub mod model;
+pub mod onnx;
 pub mod plot;
 pub mod train;
 
