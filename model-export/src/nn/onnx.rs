@@ -7,7 +7,7 @@
 //! |---|---|---|
 //! | input normalisation (optional) | `Sub(x, mean)`, `Div(·, std)` | `input_mean`, `input_std` |
 //! | input layer | `MatMul(·, W[I, E])` + `Add(b[E])`, or `Gemm` | `input.weight`, `input.bias` |
-//! | activation | `Tanh` | the firmware's input activation |
+//! | activation | `Tanh`, or none | the firmware's input activation (tanh or linear) |
 //! | LSTM | `Transpose(perm 1,0,2)` + `LSTM` (layout 0) + `Squeeze(axis 1)` + `Transpose(perm 1,0,2)`, or `LSTM` (layout 1) + `Squeeze(axis 2)` | `W`, `R`, `B` in ONNX gate order i, o, f, c, reordered to PyTorch's i, f, g, o |
 //! | output layer | `MatMul(·, W[H, O])` + `Add(b[O])`, or `Gemm` | `output.weight`, `output.bias` |
 //! | output scaling (optional) | `Mul(·, std)`, `Add(·, mean)` | `output_std`, `output_mean` |
@@ -22,7 +22,7 @@
 
 use super::model::LstmModel;
 use anyhow::{Context, Result, bail};
-use firmware::lstm::LstmDims;
+use firmware::lstm::{InputActivation, LstmDims};
 use onnx_protobuf::{AttributeProto, Message, ModelProto, NodeProto, TensorProto};
 use std::collections::HashMap;
 use std::path::Path;
@@ -432,7 +432,8 @@ fn walk<'a>(g: &mut Graph<'a>, x: &'a str, meta: &HashMap<&str, &str>) -> Result
         k = step(g, cur, "input layer")?;
     }
 
-    // Input layer and its tanh.
+    // Input layer and its activation: Tanh, or none (a plain `nn.Linear` straight into
+    // the LSTM).
     let Dense {
         inputs: i,
         outputs: e,
@@ -442,14 +443,19 @@ fn walk<'a>(g: &mut Graph<'a>, x: &'a str, meta: &HashMap<&str, &str>) -> Result
     } = dense(g, cur, k, "input layer")?;
     cur = after;
     k = step(g, cur, "input activation")?;
-    if nodes[k].op_type != "Tanh" {
-        bail!(
-            "{}: the input layer must be followed by Tanh (the firmware's input activation)",
+    let input_activation = match nodes[k].op_type.as_str() {
+        "Tanh" => {
+            g.visited[k] = true;
+            cur = nodes[k].output[0].as_str();
+            InputActivation::Tanh
+        }
+        "Transpose" | "LSTM" => InputActivation::Linear,
+        _ => bail!(
+            "{}: the input layer must be followed by Tanh or go straight to the LSTM (the \
+             firmware's input activations: tanh, linear)",
             node_label(&nodes[k])
-        );
-    }
-    g.visited[k] = true;
-    cur = nodes[k].output[0].as_str();
+        ),
+    };
 
     // LSTM, with the exporter's transposes.
     k = step(g, cur, "LSTM")?;
@@ -682,6 +688,7 @@ fn walk<'a>(g: &mut Graph<'a>, x: &'a str, meta: &HashMap<&str, &str>) -> Result
         }
     };
     Ok(LstmModel {
+        input_activation,
         dims: LstmDims {
             input: i,
             embed: e,
