@@ -33,6 +33,10 @@ pub struct Mcu {
     pub control_rates_hz: Vec<u64>,
     /// A workload without its own cycle limit must fit in one tick at this rate.
     pub control_rate_hz: u64,
+    /// The board's linker memory layout, relative to the budget file (the exporter
+    /// reads its RAM length for a model's SRAM budget).
+    #[serde(default)]
+    pub memory_layout: Option<String>,
 }
 
 /// Flash and RAM limits of one binary.
@@ -45,6 +49,10 @@ pub struct BinaryBudget {
     pub ram_bytes: u64,
     /// Bytes of RAM reserved for the stack.
     pub stack_reserve_bytes: u64,
+    /// Bytes of RAM the firmware's own static data may take beside a model's arrays
+    /// (the exporter's SRAM budget for them is what remains).
+    #[serde(default)]
+    pub firmware_ram_bytes: Option<u64>,
 }
 
 /// The budget file (`host-tests/budgets.toml`).

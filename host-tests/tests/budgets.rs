@@ -7,6 +7,27 @@
 //! STM32G474's flash, caches and FPU stall on top).
 use host_tests::budget::{self, Budgets, Options};
 
+/// Workloads still over their STM32G474 cycle limit with the board's placement, each
+/// with its G474 figure (estimated cycles, worst tick, `cargo budget`) when it was
+/// recorded: a figure above it fails, and so does a figure within the limit (remove
+/// the entry then). Why each is over (host-tests/README.md):
+/// - `lstm_gate_activations64`: libm's `expf`/`expm1f` run from flash;
+/// - `joint_trig6`, `dynamics6_f32`, `lstm_linear_f32`: FPU result stalls of the
+///   compiler's instruction order (their data is in SRAM);
+/// - `lstm_paper_f32`: its 135 800 B of weights do not fit the board's SRAM;
+/// - `lstm_paper_int8`: exported to flash (the QEMU bench binary has no room for it
+///   beside the int16 network);
+/// - `lstm_joint_int16`: its weights are in SRAM, the activation tables in flash.
+const KNOWN_CHIP_OVERRUNS: [(&str, u64); 7] = [
+    ("lstm_gate_activations64", 61_881),
+    ("joint_trig6", 600),
+    ("lstm_paper_f32", 217_587),
+    ("lstm_paper_int8", 89_933),
+    ("lstm_joint_int16", 3_842),
+    ("dynamics6_f32", 4_395),
+    ("lstm_linear_f32", 14_352),
+];
+
 #[test]
 fn firmware_fits_its_budgets_and_lowered_budgets_fail() {
     let budgets = Budgets::load(&budget::default_budget_file()).unwrap_or_else(|e| panic!("{e:#}"));
@@ -14,10 +35,10 @@ fn firmware_fits_its_budgets_and_lowered_budgets_fail() {
     let report = budget::report(m.clone(), budgets.clone());
     println!("{}", report.markdown());
     // The cycle limits apply to the STM32G474 figure; `cargo budget` exits 1 and names
-    // each overrun. Until the board's placement (hot code in CCM SRAM, weights in
-    // SRAM) and FPU-aware kernels land, several workloads are over on the chip: this
-    // test lists them and holds everything else — sizes, stack, and each zero-wait
-    // figure within its limit (the guard against regressions in the code).
+    // each overrun. With the board's placement (per-tick code in CCM SRAM, each model's
+    // arrays in SRAM where the exporter found room) the workloads in
+    // `KNOWN_CHIP_OVERRUNS` are still over on the chip: each may not grow beyond its
+    // recorded figure, and every other workload must be within its limit.
     let (chip_over, other): (Vec<_>, Vec<_>) = report
         .violations
         .iter()
@@ -28,7 +49,7 @@ fn firmware_fits_its_budgets_and_lowered_budgets_fail() {
         other.iter().map(|v| format!("  {v}\n")).collect::<String>()
     );
     for v in &chip_over {
-        println!("STM32G474 over budget: {v}");
+        println!("STM32G474 over budget (known): {v}");
     }
     for w in &m.workloads {
         let limit = budgets.cycle_limit(&w.name);
@@ -45,11 +66,35 @@ fn firmware_fits_its_budgets_and_lowered_budgets_fail() {
                 && w.cycles_max_g474_refill_high >= w.cycles_max_g474,
             "{w:?}"
         );
-        assert_eq!(
-            chip_over.iter().any(|v| v.what.contains(&w.function)),
-            w.cycles_max_g474 > limit,
-            "{}",
-            w.name
+        let over = chip_over.iter().any(|v| v.what.contains(&w.function));
+        assert_eq!(over, w.cycles_max_g474 > limit, "{}", w.name);
+        match KNOWN_CHIP_OVERRUNS.iter().find(|(name, _)| *name == w.name) {
+            None => assert!(
+                !over,
+                "{}: STM32G474 figure {} over the limit {limit} (a new overrun)",
+                w.name, w.cycles_max_g474
+            ),
+            Some(&(_, recorded)) => {
+                assert!(
+                    w.cycles_max_g474 <= recorded,
+                    "{}: STM32G474 figure {} above its recorded overrun figure {recorded} \
+                     (a regression)",
+                    w.name,
+                    w.cycles_max_g474
+                );
+                assert!(
+                    over,
+                    "{}: STM32G474 figure {} now within the limit {limit}: remove it from \
+                     KNOWN_CHIP_OVERRUNS so that the limit holds it",
+                    w.name, w.cycles_max_g474
+                );
+            }
+        }
+    }
+    for (name, _) in KNOWN_CHIP_OVERRUNS {
+        assert!(
+            m.workloads.iter().any(|w| w.name == name),
+            "KNOWN_CHIP_OVERRUNS names {name}, which is not a workload"
         );
     }
 

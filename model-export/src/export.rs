@@ -727,6 +727,192 @@ pub struct ExportMeta {
     pub control_rate_hz: u32,
     /// Steps of golden input for the self-check (`firmware::quant::golden_input`).
     pub self_check_steps: usize,
+    /// Where the model's arrays live on the target, and why.
+    pub placement: PlacementChoice,
+}
+
+/// The `link_section` attribute of the model's arrays placed in SRAM: an input section
+/// of cortex-m-rt's `.data` (run address in RAM, load image in flash, copied by its
+/// reset handler before `main`, so the static holds its value whenever Rust code reads
+/// it; `unsafe_code` is allowed for this one attribute of the static). Host builds
+/// ignore it.
+pub const SRAM_SECTION_ATTRIBUTE: &str = "#[cfg_attr(target_os = \"none\", allow(unsafe_code), \
+     unsafe(link_section = \".data.model_arrays\"))]";
+
+/// Where the exporter puts the model's arrays (network, linear stage, rigid-body model).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Placement {
+    /// Flash (`.rodata`), read over the flash interface every tick.
+    Flash,
+    /// SRAM (`.data`, copied from flash at reset): zero wait states.
+    Sram,
+}
+
+/// Where `export --weights-in` puts the model's arrays.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum WeightsIn {
+    /// Flash.
+    Flash,
+    /// SRAM (an error when a budget file is given and they do not fit its SRAM budget).
+    Sram,
+    /// SRAM when they fit the budget file's SRAM budget, flash otherwise (and without a
+    /// budget file).
+    Auto,
+}
+
+/// Chooses where each of the model's arrays lives. `auto` fills the SRAM budget in the
+/// order of what a tick reads most: the network, then the rigid-body model, then the
+/// linear stage; each goes to SRAM when it fits what is left, to flash otherwise.
+pub fn choose_placement(
+    want: WeightsIn,
+    bytes: ModelBytes,
+    sram_budget_bytes: Option<u64>,
+) -> Result<PlacementChoice> {
+    let total = bytes.network + bytes.dynamics + bytes.linear_stage;
+    let all = |p| [p; 3];
+    let [network, dynamics, linear_stage] = match (want, sram_budget_bytes) {
+        (WeightsIn::Flash, _) | (WeightsIn::Auto, None) => all(Placement::Flash),
+        (WeightsIn::Sram, None) => all(Placement::Sram),
+        (WeightsIn::Sram, Some(b)) if total as u64 <= b => all(Placement::Sram),
+        (WeightsIn::Sram, Some(b)) => bail!(
+            "--weights-in sram: the model's arrays need {total} bytes, over the SRAM budget \
+             of {b} bytes (the board's RAM less the stack reserve and the firmware's own RAM)"
+        ),
+        (WeightsIn::Auto, Some(b)) => {
+            let mut left = b;
+            [bytes.network, bytes.dynamics, bytes.linear_stage].map(|n| {
+                if n as u64 <= left {
+                    left -= n as u64;
+                    Placement::Sram
+                } else {
+                    Placement::Flash
+                }
+            })
+        }
+    };
+    Ok(PlacementChoice {
+        network,
+        dynamics,
+        linear_stage,
+        bytes,
+        sram_budget_bytes,
+    })
+}
+
+/// Bytes of each of the model's arrays.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ModelBytes {
+    /// `NETWORK`.
+    pub network: usize,
+    /// `DYNAMICS` (0 without a rigid-body model).
+    pub dynamics: usize,
+    /// `LINEAR_STAGE`.
+    pub linear_stage: usize,
+}
+
+/// Where each of the model's arrays lives, and the budget the choice was weighed against.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PlacementChoice {
+    /// `NETWORK`.
+    pub network: Placement,
+    /// `DYNAMICS`.
+    pub dynamics: Placement,
+    /// `LINEAR_STAGE`.
+    pub linear_stage: Placement,
+    /// Their sizes.
+    pub bytes: ModelBytes,
+    /// The SRAM budget for the model's arrays [bytes], when a budget file was given.
+    pub sram_budget_bytes: Option<u64>,
+}
+
+impl PlacementChoice {
+    /// One line describing the choice (the generated file's header and `export`'s output).
+    pub fn describe(&self) -> String {
+        let at = |p: Placement| match p {
+            Placement::Sram => "SRAM",
+            Placement::Flash => "flash",
+        };
+        let budget = match self.sram_budget_bytes {
+            Some(b) => format!("SRAM budget for the model {b} bytes"),
+            None => "no budget file".to_string(),
+        };
+        format!(
+            "network {} bytes in {}, rigid-body model {} bytes in {}, linear stage {} bytes in {} \
+             (SRAM: .data, copied from flash at reset; flash: .rodata); {budget}",
+            self.bytes.network,
+            at(self.network),
+            self.bytes.dynamics,
+            at(self.dynamics),
+            self.bytes.linear_stage,
+            at(self.linear_stage),
+        )
+    }
+}
+
+/// The board's SRAM budget for a model's arrays, from the budget file and the linker
+/// memory layout it names.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SramBudget {
+    /// Length of the `RAM` region in the memory layout (`memory.x`) [bytes].
+    pub layout_ram_bytes: u64,
+    /// The board binary's RAM limit (`binary.board.ram_bytes`) [bytes].
+    pub ram_limit_bytes: u64,
+    /// The board's stack reserve (`binary.board.stack_reserve_bytes`) [bytes].
+    pub stack_reserve_bytes: u64,
+    /// RAM of the board firmware's own static data and buffers
+    /// (`binary.board.firmware_ram_bytes`) [bytes].
+    pub firmware_ram_bytes: u64,
+}
+
+impl SramBudget {
+    /// Bytes left for the model's arrays: the smaller of the two RAM sizes, less the
+    /// stack reserve and the firmware's own static RAM.
+    pub fn model_bytes(&self) -> u64 {
+        self.layout_ram_bytes
+            .min(self.ram_limit_bytes)
+            .saturating_sub(self.stack_reserve_bytes)
+            .saturating_sub(self.firmware_ram_bytes)
+    }
+}
+
+/// Length in bytes of the `RAM` region of a linker memory layout (`memory.x`):
+/// `RAM : ORIGIN = ..., LENGTH = 96K` (decimal or `0x` hex, optional `K` or `M`).
+/// Errors name the line.
+pub fn layout_ram_bytes(text: &str) -> Result<u64, String> {
+    for (k, line) in text.lines().enumerate() {
+        let code = line.split("/*").next().unwrap_or("");
+        let Some((name, rest)) = code.split_once(':') else {
+            continue;
+        };
+        if name.trim() != "RAM" {
+            continue;
+        }
+        let length = rest
+            .split(',')
+            .filter_map(|f| f.split_once('='))
+            .find(|(key, _)| key.trim() == "LENGTH")
+            .map(|(_, v)| v.trim())
+            .ok_or_else(|| format!("line {}: region RAM has no LENGTH", k + 1))?;
+        return parse_layout_size(length)
+            .ok_or_else(|| format!("line {}: field LENGTH of region RAM is not a size", k + 1));
+    }
+    Err("no RAM region".into())
+}
+
+fn parse_layout_size(v: &str) -> Option<u64> {
+    let (digits, unit) = match v.as_bytes().last()? {
+        b'K' | b'k' => (&v[..v.len() - 1], 1024),
+        b'M' | b'm' => (&v[..v.len() - 1], 1024 * 1024),
+        _ => (v, 1),
+    };
+    let n = match digits
+        .strip_prefix("0x")
+        .or_else(|| digits.strip_prefix("0X"))
+    {
+        Some(hex) => u64::from_str_radix(&hex.replace('_', ""), 16).ok()?,
+        None => digits.replace('_', "").parse::<u64>().ok()?,
+    };
+    n.checked_mul(unit)
 }
 
 fn f32_lit(x: f32) -> String {
@@ -762,6 +948,7 @@ fn nested<T: Copy>(flat: &[T], per: usize, f: impl Fn(&T) -> String) -> String {
 
 fn write_quant<F: WeightFormat>(
     s: &mut String,
+    section: &str,
     n: &QuantNet<F>,
     fmt: &str,
     quad: impl Fn(&F::Quad) -> String,
@@ -805,7 +992,8 @@ fn write_quant<F: WeightFormat>(
     );
     let _ = writeln!(s, "/// The network's recurrent state.");
     let _ = writeln!(s, "pub type State = QuantState<{zq}, {h}>;");
-    let _ = writeln!(s, "/// The network (flash).");
+    let _ = writeln!(s, "/// The network.");
+    let _ = write!(s, "{section}");
     let _ = writeln!(s, "pub static NETWORK: Network = QuantLstm {{");
     let _ = writeln!(
         s,
@@ -860,7 +1048,7 @@ fn input_layer_type(a: InputActivation) -> &'static str {
     }
 }
 
-fn write_f32(s: &mut String, n: &F32Net) {
+fn write_f32(s: &mut String, section: &str, n: &F32Net) {
     let d = n.dims;
     let (i, eb, h, o, ob) = (d.input, d.embed_blocks, d.hidden, d.output, d.output_blocks);
     let e = 4 * eb;
@@ -877,7 +1065,8 @@ fn write_f32(s: &mut String, n: &F32Net) {
     );
     let _ = writeln!(s, "/// The network's recurrent state.");
     let _ = writeln!(s, "pub type State = F32State<{z}, {h}>;");
-    let _ = writeln!(s, "/// The network (flash).");
+    let _ = writeln!(s, "/// The network.");
+    let _ = write!(s, "{section}");
     let _ = writeln!(s, "pub static NETWORK: Network = F32Lstm {{");
     let _ = writeln!(
         s,
@@ -901,11 +1090,12 @@ fn write_f32(s: &mut String, n: &F32Net) {
     let _ = writeln!(s, "}};");
 }
 
-fn write_dynamics<const N: usize>(s: &mut String, m: &RigidBodyModel<N>) {
+fn write_dynamics<const N: usize>(s: &mut String, section: &str, m: &RigidBodyModel<N>) {
     let v3 = |v: &[f32; 3]| list(v, |x| f32_lit(*x));
     let _ = writeln!(s, "/// Number of joints of the rigid-body model.");
     let _ = writeln!(s, "pub const DYNAMICS_JOINTS: usize = {N};");
     let _ = writeln!(s, "/// The identified (or nominal) rigid-body model, f32.");
+    let _ = write!(s, "{section}");
     let _ = writeln!(
         s,
         "pub static DYNAMICS: RigidBodyModel<{N}> = RigidBodyModel {{"
@@ -960,16 +1150,29 @@ fn write_dynamics<const N: usize>(s: &mut String, m: &RigidBodyModel<N>) {
     let _ = writeln!(s, "}};");
 }
 
-/// Writes the `DYNAMICS` items of the generated file for a model of any joint count.
-fn write_any_dynamics(s: &mut String, d: &FirmwareModel) {
+/// Bytes of the `DYNAMICS` static of a model of any joint count.
+pub fn dynamics_bytes(d: &FirmwareModel) -> usize {
     match d {
-        FirmwareModel::J1(m) => write_dynamics(s, m),
-        FirmwareModel::J2(m) => write_dynamics(s, m),
-        FirmwareModel::J3(m) => write_dynamics(s, m),
-        FirmwareModel::J4(m) => write_dynamics(s, m),
-        FirmwareModel::J5(m) => write_dynamics(s, m),
-        FirmwareModel::J6(m) => write_dynamics(s, m),
-        FirmwareModel::J7(m) => write_dynamics(s, m),
+        FirmwareModel::J1(m) => std::mem::size_of_val(m),
+        FirmwareModel::J2(m) => std::mem::size_of_val(m),
+        FirmwareModel::J3(m) => std::mem::size_of_val(m),
+        FirmwareModel::J4(m) => std::mem::size_of_val(m),
+        FirmwareModel::J5(m) => std::mem::size_of_val(m),
+        FirmwareModel::J6(m) => std::mem::size_of_val(m),
+        FirmwareModel::J7(m) => std::mem::size_of_val(m),
+    }
+}
+
+/// Writes the `DYNAMICS` items of the generated file for a model of any joint count.
+fn write_any_dynamics(s: &mut String, section: &str, d: &FirmwareModel) {
+    match d {
+        FirmwareModel::J1(m) => write_dynamics(s, section, m),
+        FirmwareModel::J2(m) => write_dynamics(s, section, m),
+        FirmwareModel::J3(m) => write_dynamics(s, section, m),
+        FirmwareModel::J4(m) => write_dynamics(s, section, m),
+        FirmwareModel::J5(m) => write_dynamics(s, section, m),
+        FirmwareModel::J6(m) => write_dynamics(s, section, m),
+        FirmwareModel::J7(m) => write_dynamics(s, section, m),
     }
 }
 
@@ -992,6 +1195,17 @@ pub fn render(
     dynamics: Option<&FirmwareModel>,
 ) -> String {
     let mut body = String::new();
+    // The attribute line placing a static in SRAM (a closed set, never input text).
+    let attribute = |p: Placement| match p {
+        Placement::Sram => format!("{SRAM_SECTION_ATTRIBUTE}\n"),
+        Placement::Flash => String::new(),
+    };
+    let (network_section, dynamics_section, section) = (
+        attribute(meta.placement.network),
+        attribute(meta.placement.dynamics),
+        attribute(meta.placement.linear_stage),
+    );
+    let section = section.as_str();
     let preset = match meta.preset.as_str() {
         "paper" => "Paper",
         "feedforward" => "Feedforward",
@@ -1045,6 +1259,7 @@ pub fn render(
             .collect();
         list(&rows, |r| list(r, |x| f32_lit(*x)))
     };
+    let _ = write!(s, "{section}");
     let _ = writeln!(
         s,
         "pub static LINEAR_STAGE: [[f32; crate::features::FRICTION_FEATURES]; OUTPUTS] = {stage};"
@@ -1080,12 +1295,12 @@ pub fn render(
         meta.control_rate_hz
     );
     match net {
-        Exported::F32(n) => write_f32(s, n),
-        Exported::Int16(n) => write_quant(s, n, "I16Weights", quads_i16),
-        Exported::Int8(n) => write_quant(s, n, "I8Weights", quads_i8),
+        Exported::F32(n) => write_f32(s, &network_section, n),
+        Exported::Int16(n) => write_quant(s, &network_section, n, "I16Weights", quads_i16),
+        Exported::Int8(n) => write_quant(s, &network_section, n, "I8Weights", quads_i8),
     }
     if let Some(d) = dynamics {
-        write_any_dynamics(s, d);
+        write_any_dynamics(s, &dynamics_section, d);
     } else {
         let _ = writeln!(
             s,
@@ -1132,6 +1347,7 @@ pub fn render(
         meta.joints,
         meta.control_rate_hz
     );
+    let _ = writeln!(out, "// Placement: {}.", meta.placement.describe());
     let _ = writeln!(out, "#[allow(unused_imports)]");
     let _ = writeln!(out, "use crate::dynamics::{{JointModel, RigidBodyModel}};");
     let _ = writeln!(out, "#[allow(unused_imports)]");
@@ -1202,6 +1418,13 @@ pub mod cli {
         /// board binary's flash limit.
         #[arg(long)]
         pub budgets: Option<PathBuf>,
+        /// Where the model's arrays (network, linear stage, rigid-body model) live on
+        /// the target: `auto` puts them in SRAM (copied from flash at reset, zero wait
+        /// states) when they fit the SRAM budget of `--budgets` (the board's RAM in its
+        /// `memory.x` and budget, less the stack reserve and the firmware's own RAM), in
+        /// flash otherwise.
+        #[arg(long, value_enum, default_value = "auto")]
+        pub weights_in: WeightsIn,
         /// Steps of golden input in the self-check digest.
         #[arg(long, default_value_t = 1000)]
         pub self_check_steps: usize,
@@ -1270,6 +1493,59 @@ pub mod cli {
             })
     }
 
+    /// Reads the board's SRAM budget for a model's arrays from a budget file and the
+    /// linker memory layout it names (`mcu.memory_layout`, relative to the budget file).
+    pub fn sram_budget(path: &std::path::Path) -> Result<SramBudget> {
+        let text =
+            std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+        let v: toml::Value =
+            toml::from_str(&text).with_context(|| format!("parsing {}", path.display()))?;
+        let field = |keys: &[&str]| {
+            keys.iter()
+                .try_fold(&v, |t, k| t.get(k))
+                .with_context(|| format!("{}: field `{}` missing", path.display(), keys.join(".")))
+        };
+        let bytes = |keys: &[&str]| -> Result<u64> {
+            field(keys)?
+                .as_integer()
+                .and_then(|x| u64::try_from(x).ok())
+                .with_context(|| {
+                    format!(
+                        "{}: field `{}` is not a byte count",
+                        path.display(),
+                        keys.join(".")
+                    )
+                })
+        };
+        let layout = field(&["mcu", "memory_layout"])?
+            .as_str()
+            .with_context(|| {
+                format!(
+                    "{}: field `mcu.memory_layout` is not a path",
+                    path.display()
+                )
+            })?;
+        let layout = path
+            .parent()
+            .unwrap_or(std::path::Path::new("."))
+            .join(layout);
+        let layout_text = std::fs::read_to_string(&layout).with_context(|| {
+            format!(
+                "reading {} (`mcu.memory_layout` of {})",
+                layout.display(),
+                path.display()
+            )
+        })?;
+        let layout_ram_bytes = super::layout_ram_bytes(&layout_text)
+            .map_err(|e| anyhow::anyhow!("{}: {e}", layout.display()))?;
+        Ok(SramBudget {
+            layout_ram_bytes,
+            ram_limit_bytes: bytes(&["binary", "board", "ram_bytes"])?,
+            stack_reserve_bytes: bytes(&["binary", "board", "stack_reserve_bytes"])?,
+            firmware_ram_bytes: bytes(&["binary", "board", "firmware_ram_bytes"])?,
+        })
+    }
+
     /// The 0-based indices of `--joints` (joint numbers start at 1).
     fn joint_indices(a: &ExportArgs) -> Result<Vec<usize>> {
         a.joints
@@ -1312,8 +1588,8 @@ pub mod cli {
         }
     }
 
-    /// Exports `m` to `a.out`; returns the exported network.
-    pub fn export(m: &LstmModel, a: &ExportArgs) -> Result<Exported> {
+    /// Exports `m` to `a.out`; returns the exported network and where its arrays live.
+    pub fn export(m: &LstmModel, a: &ExportArgs) -> Result<(Exported, PlacementChoice)> {
         let difference = m
             .output_names
             .iter()
@@ -1363,11 +1639,19 @@ pub mod cli {
             }
             (None, _) => None,
         };
+        let sram = a.budgets.as_deref().map(sram_budget).transpose()?;
+        let bytes = ModelBytes {
+            network: net.flash_bytes(),
+            dynamics: dynamics.as_ref().map_or(0, dynamics_bytes),
+            linear_stage: m.dims.output * firmware::features::FRICTION_FEATURES * 4,
+        };
+        let placement = choose_placement(a.weights_in, bytes, sram.map(|b| b.model_bytes()))?;
         let meta = ExportMeta {
             preset: m.preset.clone(),
             joints: joint_indices(a)?,
             control_rate_hz: a.control_rate_hz,
             self_check_steps: a.self_check_steps,
+            placement,
         };
         let mut text = render(m, &net, &meta, dynamics.as_ref());
         if !warning.is_empty() {
@@ -1379,7 +1663,7 @@ pub mod cli {
         }
         // A source file, 0644 like every output of write_atomic.
         crate::nn::write_atomic(&a.out, text.as_bytes())?;
-        Ok(net)
+        Ok((net, placement))
     }
 
     /// The do-no-harm gate of a trained network: an error listing the per-joint figures
@@ -1423,13 +1707,14 @@ pub mod cli {
     /// Runs the subcommand.
     pub fn run(a: ExportArgs) -> Result<()> {
         let m = model(&a)?;
-        let net = export(&m, &a)?;
+        let (net, placement) = export(&m, &a)?;
         println!(
             "wrote {} ({}, {} bytes of network arrays)",
             a.out.display(),
             a.precision.name(),
             net.flash_bytes()
         );
+        println!("placement: {}", placement.describe());
         if let Some(log) = &a.accuracy_log {
             let table = crate::nn::data::Table::read(log)?;
             let spec = crate::nn::data::FeatureSpec::for_preset(&m.preset, &a.joints)

@@ -3,7 +3,9 @@
 //! refused with a clear error and leaves no file behind.
 use firmware::features::DRIVE_INPUTS_PER_JOINT;
 use firmware::lstm::LstmDims;
-use model_export::export::{self, ExportError, Exported, Precision, cli::ExportArgs};
+use model_export::export::{
+    self, ExportError, Exported, Placement, Precision, WeightsIn, cli::ExportArgs,
+};
 use model_export::nn::model::LstmModel;
 use std::path::{Path, PathBuf};
 
@@ -25,7 +27,8 @@ fn args(out: PathBuf, precision: Precision) -> ExportArgs {
         precision,
         robot: None,
         out,
-        budgets: None,
+        budgets: Some(workspace().join("host-tests/budgets.toml")),
+        weights_in: WeightsIn::Auto,
         self_check_steps: 10_000,
         accuracy_log: None,
         identified: None,
@@ -387,4 +390,111 @@ fn model_metadata_never_reaches_the_generated_code_as_text() {
         text.contains(r#""c\n#[x]""#),
         "names are escaped string literals"
     );
+}
+
+#[test]
+fn auto_places_a_model_in_sram_when_it_fits_the_board_budget_and_in_flash_otherwise() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let out = dir.path().join("model.rs");
+    // The paper int16 network (68 968 B) fits the SRAM budget of budgets.toml and
+    // memory.x (96 KiB - 16 KiB stack - 8 KiB firmware = 73 728 B); the f32 one
+    // (135 800 B) does not, its linear stage does.
+    let mut a = args(out.clone(), Precision::Int16);
+    a.dims = vec![9, 64, 64, 3];
+    let m = export::cli::model(&a).expect("model");
+    let (_, p) = export::cli::export(&m, &a).expect("export");
+    assert_eq!(p.sram_budget_bytes, Some(73_728));
+    assert_eq!(
+        (p.network, p.linear_stage),
+        (Placement::Sram, Placement::Sram)
+    );
+    let text = std::fs::read_to_string(&out).expect("read");
+    assert!(
+        text.lines()
+            .nth(2)
+            .is_some_and(|l| l.starts_with("// Placement: network 68968 bytes in SRAM")),
+        "{}",
+        text.lines().nth(2).unwrap_or("")
+    );
+    assert_eq!(text.matches(export::SRAM_SECTION_ATTRIBUTE).count(), 2);
+    assert!(text.contains(&format!(
+        "{}\npub static NETWORK",
+        export::SRAM_SECTION_ATTRIBUTE
+    )));
+    a.precision = Precision::F32;
+    let (_, p) = export::cli::export(&m, &a).expect("export");
+    assert_eq!(
+        (p.network, p.linear_stage),
+        (Placement::Flash, Placement::Sram)
+    );
+    let text = std::fs::read_to_string(&out).expect("read");
+    assert!(!text.contains(&format!(
+        "{}\npub static NETWORK",
+        export::SRAM_SECTION_ATTRIBUTE
+    )));
+    // Forced to flash: no attribute at all.
+    a.weights_in = WeightsIn::Flash;
+    export::cli::export(&m, &a).expect("export");
+    let text = std::fs::read_to_string(&out).expect("read");
+    assert!(!text.contains("link_section"));
+    // Forced to SRAM over the budget: an error naming both sizes, the file untouched.
+    a.weights_in = WeightsIn::Sram;
+    let err = format!("{:#}", export::cli::export(&m, &a).unwrap_err());
+    assert!(err.contains("over the SRAM budget of 73728 bytes"), "{err}");
+    assert_eq!(std::fs::read_to_string(&out).expect("read"), text);
+}
+
+#[test]
+fn a_broken_memory_layout_is_refused_naming_file_line_and_field() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let layout = dir.path().join("memory.x");
+    std::fs::write(
+        &layout,
+        "MEMORY\n{\n  FLASH : ORIGIN = 0x08000000, LENGTH = 512K\n  RAM : ORIGIN = 0x20000000, LENGTH = lots\n}\n",
+    )
+    .expect("write");
+    let budgets = dir.path().join("budgets.toml");
+    std::fs::write(
+        &budgets,
+        "[mcu]\nmemory_layout = \"memory.x\"\n[binary.board]\nflash_bytes = 524288\n\
+         ram_bytes = 98304\nstack_reserve_bytes = 16384\nfirmware_ram_bytes = 8192\n",
+    )
+    .expect("write");
+    let out = dir.path().join("model.rs");
+    let mut a = args(out.clone(), Precision::Int16);
+    a.budgets = Some(budgets.clone());
+    let m = export::cli::model(&a).expect("model");
+    let err = format!("{:#}", export::cli::export(&m, &a).unwrap_err());
+    assert!(
+        err.contains("memory.x") && err.contains("line 4") && err.contains("LENGTH"),
+        "{err}"
+    );
+    assert!(!out.exists());
+    // A budget file without the firmware's own RAM names the field.
+    std::fs::write(
+        &layout,
+        "MEMORY\n{\n  RAM : ORIGIN = 0x20000000, LENGTH = 96K\n}\n",
+    )
+    .expect("write");
+    std::fs::write(
+        &budgets,
+        "[mcu]\nmemory_layout = \"memory.x\"\n[binary.board]\nflash_bytes = 524288\n\
+         ram_bytes = 98304\nstack_reserve_bytes = 16384\n",
+    )
+    .expect("write");
+    let err = format!("{:#}", export::cli::export(&m, &a).unwrap_err());
+    assert!(err.contains("binary.board.firmware_ram_bytes"), "{err}");
+    assert!(!out.exists());
+    // Sizes in hex and K/M, comments ignored.
+    assert_eq!(
+        export::layout_ram_bytes(
+            "/* RAM : LENGTH = 1 */\n  RAM : ORIGIN = 0x20000000, LENGTH = 0x18000\n"
+        ),
+        Ok(0x18000)
+    );
+    assert_eq!(
+        export::layout_ram_bytes("RAM : ORIGIN = 0x20000000, LENGTH = 4M"),
+        Ok(4 << 20)
+    );
+    assert!(export::layout_ram_bytes("FLASH : ORIGIN = 0, LENGTH = 4M").is_err());
 }
