@@ -103,6 +103,8 @@ impl fmt::Display for FoldedJoint {
 pub struct LoadedRobot {
     /// The modelled chain.
     pub robot: Robot,
+    /// First and last link of the chain (URDF; `None` for a DH table).
+    pub chain_links: Option<(String, String)>,
     /// Moving joints outside the chain, held at fixed positions (empty for a serial
     /// description); callers show them as a warning ([`LoadedRobot::warning`]).
     pub folded: Vec<FoldedJoint>,
@@ -115,11 +117,14 @@ impl LoadedRobot {
             return None;
         }
         let list: Vec<String> = self.folded.iter().map(|j| j.to_string()).collect();
+        let chain = match &self.chain_links {
+            Some((base, tip)) => format!("the chain from \"{base}\" to \"{tip}\""),
+            None => "the chain".into(),
+        };
         Some(format!(
-            "{}: {} moving joint(s) outside the chain from {} are held fixed (set with --side-joint NAME=Q): {}",
+            "{}: {} moving joint(s) outside {chain} are held fixed (set with --side-joint NAME=Q): {}",
             self.robot.source.display(),
             self.folded.len(),
-            self.robot.name,
             list.join("; ")
         ))
     }
@@ -564,6 +569,7 @@ impl Robot {
             Some("urdf") | Some("xml") => urdf::parse(&text, path, selection),
             Some("toml") if selection.is_default() => Ok(LoadedRobot {
                 robot: dh::parse(&text, path)?,
+                chain_links: None,
                 folded: Vec::new(),
             }),
             Some("toml") => Err(RobotError {

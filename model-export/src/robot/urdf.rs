@@ -651,6 +651,7 @@ pub(super) fn parse(
         let mut branch: Vec<(usize, Matrix3<f64>, Vector3<f64>)> = children[current]
             .iter()
             .filter(|&&ji| !on_chain[ji])
+            .rev()
             .map(|&ji| (ji, acc.0, acc.1))
             .collect();
         while let Some((ji, r, p)) = branch.pop() {
@@ -660,7 +661,7 @@ pub(super) fn parse(
             if let Some(b) = body_params.as_mut() {
                 add_params(b, &link_parameters(&model.links[child]), &tr, &tp);
             }
-            branch.extend(children[child].iter().map(|&c| (c, tr, tp)));
+            branch.extend(children[child].iter().rev().map(|&c| (c, tr, tp)));
         }
         let Some(&ji) = chain.get(next) else { break };
         next += 1;
@@ -784,6 +785,10 @@ pub(super) fn parse(
             joints,
             terms: ModelTerms::default(),
         },
+        chain_links: Some((
+            model.links[base].name.clone(),
+            model.links[tip].name.clone(),
+        )),
         folded,
     })
 }
