@@ -399,8 +399,7 @@ pub(super) fn parse(
         }
         let first = l;
         let mut names = Vec::new();
-        loop {
-            let Some(ji) = parent_joint[l] else { break };
+        while let Some(ji) = parent_joint[l] {
             names.push(model.joints[ji].name.as_str());
             l = ends[ji].0;
             if l == first || names.len() > n {
