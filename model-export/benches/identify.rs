@@ -76,6 +76,7 @@ fn main() {
         friction_offset: false,
         coulomb_smoothing_rad_s: None,
         friction_model: model_export::identify::commands::FrictionModel::Paper,
+        chain: Default::default(),
     };
     let m = RobotBaseModel::new(load_robot(Path::new(ROBOT), &joints).unwrap()).unwrap();
     let names = m.parameter_names();

@@ -1411,6 +1411,10 @@ pub mod cli {
         /// joint selection replace the nominal ones.
         #[arg(long, requires = "robot")]
         pub identified: Option<PathBuf>,
+        /// The modelled chain of a URDF tree (`--robot` without `--identified`; an
+        /// identified model brings its own).
+        #[command(flatten)]
+        pub chain: crate::robot::args::ChainArgs,
         /// Output Rust file (written to a temporary file, then renamed).
         #[arg(long)]
         pub out: PathBuf,
@@ -1629,11 +1633,18 @@ pub mod cli {
         }
         let dynamics = match (&a.robot, &a.identified) {
             (Some(p), Some(identified)) => {
+                if !a.chain.selection()?.is_default() {
+                    anyhow::bail!(
+                        "--base-link, --tip-link and --side-joint do not apply with --identified: the model file records its chain"
+                    );
+                }
                 let (robot, theta) = crate::identify::commands::load_identified(p, identified)?;
                 Some(FirmwareModel::build(&robot, &theta)?)
             }
             (Some(p), None) => {
-                let robot = crate::robot::Robot::load(p)
+                let robot = a
+                    .chain
+                    .load_and_warn(p)
                     .with_context(|| format!("reading robot {}", p.display()))?;
                 Some(FirmwareModel::build(&robot, &robot.standard_parameters())?)
             }

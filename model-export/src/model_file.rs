@@ -20,6 +20,60 @@ pub struct RobotRef {
     pub source_path: String,
     /// SHA-256 of the description file.
     pub sha256: String,
+    /// The modelled chain of a URDF tree (absent: the description's default chain).
+    #[serde(default, skip_serializing_if = "ChainRef::is_default")]
+    pub chain: ChainRef,
+}
+
+/// The chain of a URDF tree a model was identified on (`--base-link`, `--tip-link`,
+/// `--side-joint`).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct ChainRef {
+    /// Base link; `None`: the root.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub base_link: Option<String>,
+    /// Tip link; `None`: the single end of the moving joints.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tip_link: Option<String>,
+    /// Positions of moving joints outside the chain [rad or m].
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub side_joints: Vec<LockedJoint>,
+}
+
+impl ChainRef {
+    /// Whether this is the description's default chain.
+    pub fn is_default(&self) -> bool {
+        *self == ChainRef::default()
+    }
+
+    /// The same chain as a robot loader's selection.
+    pub fn selection(&self) -> crate::robot::ChainSelection {
+        crate::robot::ChainSelection {
+            base_link: self.base_link.clone(),
+            tip_link: self.tip_link.clone(),
+            side_joint_positions: self
+                .side_joints
+                .iter()
+                .map(|j| (j.name.clone(), j.position_rad))
+                .collect(),
+        }
+    }
+
+    /// The record of a loader's selection.
+    pub fn from_selection(s: &crate::robot::ChainSelection) -> Self {
+        ChainRef {
+            base_link: s.base_link.clone(),
+            tip_link: s.tip_link.clone(),
+            side_joints: s
+                .side_joint_positions
+                .iter()
+                .map(|(name, q)| LockedJoint {
+                    name: name.clone(),
+                    position_rad: *q,
+                })
+                .collect(),
+        }
+    }
 }
 
 /// A joint held at a fixed position during identification.
@@ -273,6 +327,7 @@ mod tests {
                 name: "r".into(),
                 source_path: "r.urdf".into(),
                 sha256: "00".into(),
+                chain: ChainRef::default(),
             },
             modelled_joints: vec!["j1".into()],
             locked_joints: vec![],

@@ -32,6 +32,7 @@ fn args(out: PathBuf, precision: Precision) -> ExportArgs {
         self_check_steps: 10_000,
         accuracy_log: None,
         identified: None,
+        chain: Default::default(),
         accuracy_json: None,
         gate_data: Vec::new(),
         allow_worse: false,

@@ -26,6 +26,7 @@ fn robot_model() -> RobotBaseModel {
         friction_offset: false,
         coulomb_smoothing_rad_s: None,
         friction_model: model_export::identify::commands::FrictionModel::Paper,
+        chain: Default::default(),
     };
     RobotBaseModel::new(load_robot(Path::new(ROBOT), &joints).unwrap()).unwrap()
 }

@@ -29,6 +29,7 @@ fn nominal_model() -> firmware::dynamics::RigidBodyModel<3> {
             friction_offset: false,
             coulomb_smoothing_rad_s: None,
             friction_model: model_export::identify::commands::FrictionModel::Paper,
+            chain: Default::default(),
         },
     )
     .unwrap();

@@ -19,6 +19,9 @@ pub struct ExciteArgs {
     /// Robot description (DH TOML or URDF).
     #[arg(long, default_value = crate::sim::cli::DEFAULT_ROBOT)]
     pub robot: PathBuf,
+    /// The modelled chain of a URDF tree.
+    #[command(flatten)]
+    pub chain: crate::robot::args::ChainArgs,
     /// Moving joints: `file` (the robot file's selection), `wrist` (the paper: joints 1-3
     /// locked at zero, 4.. moving), `all`, or a 1-based list such as `4,5,6` (others locked at
     /// zero).
@@ -131,7 +134,7 @@ pub fn run(a: &ExciteArgs) -> anyhow::Result<()> {
     if !(a.rate.is_finite() && a.rate > 0.0) {
         bail!("--rate {}: must be positive", a.rate);
     }
-    let mut robot = Robot::load(&a.robot).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let mut robot = a.chain.load_and_warn(&a.robot)?;
     select_joints(&mut robot, &a.joints)?;
     let model = RobotObservation::new(robot)?;
     let robot = model.robot();

@@ -40,6 +40,9 @@ pub struct JointArgs {
     /// and evaluated by the firmware).
     #[arg(long, value_enum, default_value_t = FrictionModel::Paper)]
     pub friction_model: FrictionModel,
+    /// The modelled chain of a URDF tree.
+    #[command(flatten)]
+    pub chain: crate::robot::args::ChainArgs,
 }
 
 /// Friction basis of the identified model.
@@ -199,7 +202,7 @@ impl FirmwareModel {
 
 /// Loads the robot and applies the joint selection and model terms.
 pub fn load_robot(path: &Path, j: &JointArgs) -> anyhow::Result<Robot> {
-    let mut robot = Robot::load(path)?;
+    let mut robot = j.chain.load_and_warn(path)?;
     if !j.lock.is_empty() {
         robot.model_all_joints();
     }
@@ -478,6 +481,7 @@ pub fn identify(a: &IdentifyArgs) -> anyhow::Result<()> {
             name: model.robot.name.clone(),
             source_path: a.robot.display().to_string(),
             sha256: robot_hash,
+            chain: crate::model_file::ChainRef::from_selection(&a.joints.chain.selection()?),
         },
         modelled_joints: joint_names.clone(),
         locked_joints,
@@ -558,8 +562,9 @@ pub fn load_identified(robot_path: &Path, mp: &Path) -> anyhow::Result<(Robot, D
             file.robot.sha256
         );
     }
-    // Joint selection and model terms come from the model file.
-    let mut robot = Robot::load(robot_path)?;
+    // Chain, joint selection and model terms come from the model file.
+    let mut robot = crate::robot::args::ChainArgs::from_selection(&file.robot.chain.selection())
+        .load_and_warn(robot_path)?;
     robot.model_all_joints();
     let t = &file.model_terms;
     robot.terms.viscous_friction = t.viscous_friction;
@@ -623,7 +628,18 @@ pub fn load_model_robot(
             let theta = robot.standard_parameters();
             Ok((robot, theta))
         }
-        Some(mp) => load_identified(robot_path, mp),
+        Some(mp) => {
+            let chosen = joints.chain.selection()?;
+            let recorded = ModelFile::read(mp)?.robot.chain.selection();
+            if !chosen.is_default() && chosen != recorded {
+                bail!(
+                    "{}: the model was identified on another chain ({:?}); leave out --base-link, --tip-link and --side-joint to use the model's",
+                    mp.display(),
+                    recorded
+                );
+            }
+            load_identified(robot_path, mp)
+        }
     }
 }
 

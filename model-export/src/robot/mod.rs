@@ -12,6 +12,10 @@
 //! API:
 //! - [`Robot::load`] picks the reader by extension (`.urdf`/`.xml` or `.toml`);
 //!   [`Robot::from_urdf_str`], [`Robot::from_dh_toml_str`] parse text.
+//! - [`Robot::load_chain`], [`Robot::from_urdf_str_chain`]: a URDF tree, of which one
+//!   chain ([`ChainSelection`]: base and tip link) is modelled; the other branches ride on
+//!   it as fixed bodies, and those with moving joints come back as [`FoldedJoint`]s
+//!   (the warning to show).
 //! - [`Robot::modelled_joints`]: the joints whose torques are modelled; the others are
 //!   locked at [`JointMode::Locked`] positions. [`Robot::default_paper_selection`] locks
 //!   joints 1-3 and models 4-6 (Zhang et al. 2020).
@@ -24,10 +28,107 @@ use nalgebra::{Matrix3, Rotation3, Unit, Vector3};
 use std::fmt;
 use std::path::{Path, PathBuf};
 
+pub mod args;
 mod dh;
 mod urdf;
 
 pub use dh::DhConvention;
+
+/// Largest URDF file read [bytes].
+pub const MAX_URDF_BYTES: usize = 64 << 20;
+
+/// Largest number of `<link>` elements in a URDF.
+pub const MAX_URDF_LINKS: usize = 10_000;
+
+/// Largest number of `<joint>` elements in a URDF.
+pub const MAX_URDF_JOINTS: usize = 10_000;
+
+/// Largest number of attributes on one URDF element.
+pub const MAX_URDF_ATTRIBUTES: usize = 64;
+
+/// Which chain of a URDF tree is modelled, and where the joints outside it stand.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ChainSelection {
+    /// First link of the chain (its frame is the base frame); `None`: the root link.
+    pub base_link: Option<String>,
+    /// Last link of the chain; `None`: the single link that ends a path of moving joints
+    /// below the base (an error lists the candidates when there are several).
+    pub tip_link: Option<String>,
+    /// Positions [rad, or m for prismatic joints] of moving joints outside the chain, by
+    /// joint name; the others stand at 0.
+    pub side_joint_positions: Vec<(String, f64)>,
+}
+
+impl ChainSelection {
+    /// Whether nothing is selected (the whole description's defaults).
+    pub fn is_default(&self) -> bool {
+        self.base_link.is_none() && self.tip_link.is_none() && self.side_joint_positions.is_empty()
+    }
+}
+
+/// A moving joint outside the modelled chain, folded in as part of a fixed body.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FoldedJoint {
+    /// Joint name.
+    pub name: String,
+    /// URDF joint type (`revolute`, `continuous` or `prismatic`).
+    pub joint_type: String,
+    /// Position it is held at [rad, or m for prismatic joints].
+    pub position: f64,
+    /// The chain link whose body carries it, or `None` when it rides on the base (or
+    /// above it) and does not load the modelled joints' gravity-free dynamics.
+    pub carried_by: Option<String>,
+}
+
+impl fmt::Display for FoldedJoint {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let unit = if self.joint_type == "prismatic" {
+            "m"
+        } else {
+            "rad"
+        };
+        write!(
+            f,
+            "{} ({}) at {} {unit}, on {}",
+            self.name,
+            self.joint_type,
+            self.position,
+            self.carried_by.as_deref().unwrap_or("the base")
+        )
+    }
+}
+
+/// A robot read from a description, with the moving joints folded out of its chain.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LoadedRobot {
+    /// The modelled chain.
+    pub robot: Robot,
+    /// First and last link of the chain (URDF; `None` for a DH table).
+    pub chain_links: Option<(String, String)>,
+    /// Moving joints outside the chain, held at fixed positions (empty for a serial
+    /// description); callers show them as a warning ([`LoadedRobot::warning`]).
+    pub folded: Vec<FoldedJoint>,
+}
+
+impl LoadedRobot {
+    /// The warning listing the folded joints, if any.
+    pub fn warning(&self) -> Option<String> {
+        if self.folded.is_empty() {
+            return None;
+        }
+        let list: Vec<String> = self.folded.iter().map(|j| j.to_string()).collect();
+        let chain = match &self.chain_links {
+            Some((base, tip)) => format!("the chain from \"{base}\" to \"{tip}\""),
+            None => "the chain".into(),
+        };
+        Some(format!(
+            "{}: {} moving joint(s) outside {chain} are held fixed (set with --side-joint NAME=Q): {}",
+            self.robot.source.display(),
+            self.folded.len(),
+            list.join("; ")
+        ))
+    }
+}
 
 /// Standard inertial parameters of one link per row block, in this order
 /// (inertia about the link frame origin, link axes).
@@ -430,23 +531,53 @@ pub struct Robot {
 }
 
 impl Robot {
-    /// Loads a robot: `.urdf` or `.xml` as URDF, `.toml` as a DH table.
+    /// Loads a robot: `.urdf` or `.xml` as URDF, `.toml` as a DH table; a URDF tree's
+    /// default chain ([`Robot::load_chain`] returns the folded joints as well).
     pub fn load(path: impl AsRef<Path>) -> Result<Robot, RobotError> {
+        Ok(Self::load_chain(path, &ChainSelection::default())?.robot)
+    }
+
+    /// Loads a robot and selects the chain of a URDF tree (a DH table is one chain and
+    /// takes no selection).
+    pub fn load_chain(
+        path: impl AsRef<Path>,
+        selection: &ChainSelection,
+    ) -> Result<LoadedRobot, RobotError> {
         let path = path.as_ref();
-        let text = std::fs::read_to_string(path).map_err(|e| RobotError {
+        let file_err = |message: String| RobotError {
             file: path.to_path_buf(),
             line: None,
             field: "<file>".into(),
-            message: format!("cannot read: {e}"),
-        })?;
+            message,
+        };
+        let size = std::fs::metadata(path)
+            .map_err(|e| file_err(format!("cannot read: {e}")))?
+            .len();
+        if size > MAX_URDF_BYTES as u64 {
+            return Err(file_err(format!(
+                "{size} bytes: larger than the limit of {MAX_URDF_BYTES} bytes (MAX_URDF_BYTES)"
+            )));
+        }
+        let text =
+            std::fs::read_to_string(path).map_err(|e| file_err(format!("cannot read: {e}")))?;
         match path
             .extension()
             .and_then(|e| e.to_str())
             .map(|e| e.to_ascii_lowercase())
             .as_deref()
         {
-            Some("urdf") | Some("xml") => urdf::parse(&text, path),
-            Some("toml") => dh::parse(&text, path),
+            Some("urdf") | Some("xml") => urdf::parse(&text, path, selection),
+            Some("toml") if selection.is_default() => Ok(LoadedRobot {
+                robot: dh::parse(&text, path)?,
+                chain_links: None,
+                folded: Vec::new(),
+            }),
+            Some("toml") => Err(RobotError {
+                file: path.to_path_buf(),
+                line: None,
+                field: "<chain>".into(),
+                message: "a DH table is a single chain: --base-link, --tip-link and --side-joint apply to URDF files only".into(),
+            }),
             _ => Err(RobotError {
                 file: path.to_path_buf(),
                 line: None,
@@ -458,7 +589,16 @@ impl Robot {
 
     /// Parses URDF text (`file` names it in errors).
     pub fn from_urdf_str(text: &str, file: impl AsRef<Path>) -> Result<Robot, RobotError> {
-        urdf::parse(text, file.as_ref())
+        Ok(urdf::parse(text, file.as_ref(), &ChainSelection::default())?.robot)
+    }
+
+    /// Parses URDF text and selects one chain of its tree (`file` names it in errors).
+    pub fn from_urdf_str_chain(
+        text: &str,
+        file: impl AsRef<Path>,
+        selection: &ChainSelection,
+    ) -> Result<LoadedRobot, RobotError> {
+        urdf::parse(text, file.as_ref(), selection)
     }
 
     /// Parses a DH table in TOML (`file` names it in errors); schema in the crate README.

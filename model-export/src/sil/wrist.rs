@@ -637,6 +637,7 @@ where
 pub fn identified_wrist_model(
     robot: &std::path::Path,
     model: &std::path::Path,
+    chain: &crate::robot::args::ChainArgs,
 ) -> anyhow::Result<RigidBodyModel<J>> {
     let (r, theta) = crate::identify::commands::load_model_robot(
         robot,
@@ -646,6 +647,7 @@ pub fn identified_wrist_model(
             friction_offset: false,
             coulomb_smoothing_rad_s: None,
             friction_model: crate::identify::commands::FrictionModel::Paper,
+            chain: chain.clone(),
         },
     )?;
     ensure!(
@@ -729,6 +731,9 @@ pub struct SilArgs {
     /// Robot description (must be the one the model was identified for).
     #[arg(long, default_value = crate::sim::cli::DEFAULT_ROBOT)]
     pub robot: std::path::PathBuf,
+    /// The modelled chain of a URDF tree.
+    #[command(flatten)]
+    pub chain: crate::robot::args::ChainArgs,
     /// Plant file (true friction, ripple, ...); default: robots/default.plant.toml.
     #[arg(long)]
     pub plant: Option<std::path::PathBuf>,
@@ -821,7 +826,7 @@ pub fn run_sil_cli(a: &SilArgs) -> anyhow::Result<()> {
         "--compensator-hz must be in (0, 20000]"
     );
     let robot_path = crate::sim::cli::resolve(&a.robot);
-    let robot = crate::robot::Robot::load(&robot_path)?;
+    let robot = a.chain.load_and_warn(&robot_path)?;
     let plant = match &a.plant {
         Some(p) => PlantParameters::load(p)?,
         None => PlantParameters::default_robot(),
@@ -833,7 +838,7 @@ pub fn run_sil_cli(a: &SilArgs) -> anyhow::Result<()> {
         ensure!(s.is_finite() && s > 0.0, "--seconds must be > 0");
         setup.duration_s = s.min(setup.duration_s);
     }
-    let model = identified_wrist_model(&robot_path, model_path)?;
+    let model = identified_wrist_model(&robot_path, model_path, &a.chain)?;
     let lstm = a.lstm.as_deref().map(WristLstm::load).transpose()?;
     let modes: Vec<WristFeedforward> = WristFeedforward::ALL
         .into_iter()

@@ -73,6 +73,9 @@ pub struct PlantArgs {
     /// Robot description (DH TOML or URDF); default: the built-in UR5e-class arm.
     #[arg(long, default_value = DEFAULT_ROBOT)]
     pub robot: PathBuf,
+    /// The modelled chain of a URDF tree.
+    #[command(flatten)]
+    pub chain: crate::robot::args::ChainArgs,
     /// Plant file (effects beyond the model, TOML); default: the built-in
     /// robots/default.plant.toml.
     #[arg(long)]
@@ -190,7 +193,7 @@ fn config(args: &PlantArgs, dof: usize, driven: Vec<usize>, seed: u64) -> Simula
 
 /// Runs `simulate`.
 pub fn run_simulate(args: &SimulateArgs) -> anyhow::Result<()> {
-    let robot = super::load_robot(&args.plant.robot)?;
+    let robot = super::load_robot_chain(&args.plant.robot, &args.plant.chain)?;
     let arm = super::RobotRigidBody::new(&robot);
     let dof = robot.dof();
     let plant = load_plant(&args.plant)?;
@@ -269,7 +272,7 @@ pub const DEMO_LIMITS: (f64, f64, f64) = (2.5, 2.5, 10.0);
 
 /// Runs `plant-report`: the per-joint uncompensated RMS table.
 pub fn run_plant_report(args: &PlantReportArgs) -> anyhow::Result<()> {
-    let robot = super::load_robot(&args.plant.robot)?;
+    let robot = super::load_robot_chain(&args.plant.robot, &args.plant.chain)?;
     let arm = super::RobotRigidBody::new(&robot);
     let dof = robot.dof();
     let plant = load_plant(&args.plant)?;

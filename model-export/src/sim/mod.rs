@@ -445,3 +445,12 @@ pub fn load_robot(path: &std::path::Path) -> anyhow::Result<crate::robot::Robot>
     let p = cli::resolve(path);
     Ok(crate::robot::Robot::load(&p)?)
 }
+
+/// [`load_robot`] with the chain of a URDF tree chosen by `chain` (the folded joints'
+/// warning goes to stderr).
+pub fn load_robot_chain(
+    path: &std::path::Path,
+    chain: &crate::robot::args::ChainArgs,
+) -> anyhow::Result<crate::robot::Robot> {
+    chain.load_and_warn(&cli::resolve(path))
+}

@@ -1,0 +1,76 @@
+//! Benchmark: URDF reading time against size (a chain of N revolute joints, and a binary
+//! tree of fixed joints on one moving joint). Reading is linear: the time per joint stays
+//! flat as N grows. Prints a table (wall-clock, best of 3); run with
+//! `cargo bench -p model-export --bench urdf`.
+use model_export::robot::Robot;
+use std::time::Instant;
+
+fn chain(n: usize) -> String {
+    let mut s = String::from("<robot name=\"long\">\n  <link name=\"l0\"/>\n");
+    for i in 0..n {
+        s.push_str(&format!(
+            "  <joint name=\"j{i}\" type=\"revolute\">\n    <parent link=\"l{i}\"/>\n    <child link=\"l{}\"/>\n    <origin xyz=\"0 0 0.1\" rpy=\"0 0 0\"/>\n    <axis xyz=\"0 0 1\"/>\n    <limit lower=\"-1\" upper=\"1\" effort=\"10\" velocity=\"2\"/>\n  </joint>\n  <link name=\"l{}\">\n    <inertial>\n      <origin xyz=\"0.01 0 0\" rpy=\"0 0 0\"/>\n      <mass value=\"1.0\"/>\n      <inertia ixx=\"0.01\" ixy=\"0\" ixz=\"0\" iyy=\"0.01\" iyz=\"0\" izz=\"0.01\"/>\n    </inertial>\n  </link>\n",
+            i + 1,
+            i + 1
+        ));
+    }
+    s.push_str("</robot>\n");
+    s
+}
+
+fn fixed_tree(n: usize) -> String {
+    let link = |name: &str| {
+        format!(
+            "  <link name=\"{name}\"><inertial><mass value=\"1\"/><inertia ixx=\"0.01\" ixy=\"0\" ixz=\"0\" iyy=\"0.01\" iyz=\"0\" izz=\"0.01\"/></inertial></link>\n"
+        )
+    };
+    let mut s = String::from("<robot name=\"tree\">\n");
+    s.push_str(&link("base"));
+    s.push_str(&link("t1"));
+    s.push_str("  <joint name=\"j\" type=\"revolute\"><parent link=\"base\"/><child link=\"t1\"/><axis xyz=\"0 0 1\"/></joint>\n");
+    for i in 2..=n {
+        s.push_str(&link(&format!("t{i}")));
+        s.push_str(&format!(
+            "  <joint name=\"f{i}\" type=\"fixed\"><parent link=\"t{}\"/><child link=\"t{i}\"/><origin xyz=\"0 0.01 0\"/></joint>\n",
+            i / 2
+        ));
+    }
+    s.push_str("</robot>\n");
+    s
+}
+
+fn best_of_3(text: &str) -> f64 {
+    (0..3)
+        .map(|_| {
+            let t = Instant::now();
+            let r = Robot::from_urdf_str(text, "bench.urdf").expect("parses");
+            std::hint::black_box(r);
+            t.elapsed().as_secs_f64()
+        })
+        .fold(f64::INFINITY, f64::min)
+}
+
+fn main() {
+    println!("| shape | joints | bytes | read [ms] | per joint [us] |");
+    println!("|---|---:|---:|---:|---:|");
+    for n in [500, 1000, 2000, 4000, 8000] {
+        let t = chain(n);
+        let s = best_of_3(&t);
+        println!(
+            "| revolute chain | {n} | {} | {:.1} | {:.2} |",
+            t.len(),
+            s * 1e3,
+            s * 1e6 / n as f64
+        );
+    }
+    for n in [1023, 4095] {
+        let t = fixed_tree(n);
+        let s = best_of_3(&t);
+        println!(
+            "| binary tree of fixed joints | {n} | {} | {:.1} | {:.2} |",
+            t.len(),
+            s * 1e3,
+            s * 1e6 / n as f64
+        );
+    }
+}
