@@ -596,7 +596,7 @@ pub fn load_identified(robot_path: &Path, mp: &Path) -> anyhow::Result<(Robot, D
         .base_parameters
         .iter()
         .enumerate()
-        .find(|(_, b)| !(b.value.abs() <= MAX_ABS_BASE_PARAMETER))
+        .find(|(_, b)| b.value.is_nan() || b.value.abs() > MAX_ABS_BASE_PARAMETER)
     {
         bail!(
             "{}, field base_parameters[{k}].value ({}): {} is beyond the limit {MAX_ABS_BASE_PARAMETER:e} (MAX_ABS_BASE_PARAMETER, SI units)",

@@ -487,7 +487,10 @@ impl Robot {
             let offsets = std::iter::once(&j.origin_translation)
                 .chain(j.link_frame.as_ref().map(|(_, p)| p))
                 .flat_map(|p| p.iter());
-            if let Some(v) = offsets.copied().find(|v| !(v.abs() <= MAX_ABS_OFFSET_M)) {
+            if let Some(v) = offsets
+                .copied()
+                .find(|v| v.is_nan() || v.abs() > MAX_ABS_OFFSET_M)
+            {
                 return Err(fail(
                     format!("joint `{}` origin", j.name),
                     format!(
@@ -500,7 +503,7 @@ impl Robot {
         if let Some((k, v)) = theta
             .iter()
             .enumerate()
-            .find(|(_, v)| !(v.abs() <= MAX_ABS_STANDARD_PARAMETER))
+            .find(|(_, v)| v.is_nan() || v.abs() > MAX_ABS_STANDARD_PARAMETER)
         {
             let name = self.parameter_names().get(k).cloned().unwrap_or_default();
             return Err(fail(
