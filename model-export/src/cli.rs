@@ -381,6 +381,7 @@ fn evaluate_cmd(a: EvaluateArgs) -> Result<()> {
         .map(|t| spec.sequence(t))
         .collect::<Result<_>>()?;
     let mut reports = Vec::new();
+    let mut figures = Vec::new();
     for (i, ((p, s), table)) in a.data.iter().zip(seqs).zip(&tables).enumerate() {
         let rows = eval::evaluate(&model, &s)?;
         let base_rms = match &baseline {
@@ -388,7 +389,9 @@ fn evaluate_cmd(a: EvaluateArgs) -> Result<()> {
             None => vec![None; rows.len()],
         };
         if let (0, Some(dir)) = (i, &a.figures) {
-            plot::compensation_figures(&model, &s, dir)?;
+            for (name, svg) in plot::compensation_figures(&model, &s)? {
+                figures.push((dir.join(name), svg));
+            }
         }
         let rows: Vec<eval::ReportRow> = rows
             .into_iter()
@@ -399,6 +402,11 @@ fn evaluate_cmd(a: EvaluateArgs) -> Result<()> {
                 baseline_rms_nm,
             })
             .collect();
+        crate::model_file::ensure_finite(
+            &format!("{}: evaluation", p.display()),
+            rows.iter()
+                .flat_map(|r| r.eval.figures().chain(r.baseline_rms_nm)),
+        )?;
         let plain: Vec<eval::TargetEval> = rows.iter().map(|r| r.eval.clone()).collect();
         println!(
             "{} ({} steps, streamed):\n{}",
@@ -430,19 +438,27 @@ fn evaluate_cmd(a: EvaluateArgs) -> Result<()> {
             "outputs": rows, "paper_table2": paper_rows}),
         );
     }
-    if let Some(r) = a.report {
-        crate::nn::write_atomic(
-            &r,
+    let report = match &a.report {
+        Some(r) => Some((
+            r,
             serde_json::to_string_pretty(
                 &serde_json::json!({"preset": spec.preset, "data": reports,
                     "baseline": baseline.as_ref().map(|b| serde_json::json!({
                         "data": a.baseline_data.iter().map(|p| p.display().to_string()).collect::<Vec<_>>(),
                         "fit": b}))}),
-            )?
-            .as_bytes(),
-        )?;
+            )?,
+        )),
+        None => None,
+    };
+    // The figures and the report: all or none.
+    let mut files: Vec<(&Path, &[u8])> = figures
+        .iter()
+        .map(|(p, svg)| (p.as_path(), svg.as_bytes()))
+        .collect();
+    if let Some((path, text)) = &report {
+        files.push((path.as_path(), text.as_bytes()));
     }
-    Ok(())
+    crate::model_file::write_atomic_all(&files)
 }
 
 /// Compares a model's streamed firmware output with a reference CSV (`x*` inputs,

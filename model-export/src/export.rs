@@ -1374,7 +1374,7 @@ pub mod cli {
     use crate::nn::model::LstmModel;
     use anyhow::Context;
     use firmware::lstm::LstmDims;
-    use std::path::PathBuf;
+    use std::path::{Path, PathBuf};
 
     /// `model-export export`.
     #[derive(Debug, clap::Args)]
@@ -1488,12 +1488,19 @@ pub mod cli {
             .and_then(|b| b.get("board"))
             .and_then(|b| b.get("flash_bytes"))
             .and_then(toml::Value::as_integer)
-            .map(|x| x as u64)
             .with_context(|| {
                 format!(
                     "{}: field `binary.board.flash_bytes` missing",
                     path.display()
                 )
+            })
+            .and_then(|x| {
+                u64::try_from(x).ok().filter(|&b| b > 0).with_context(|| {
+                    format!(
+                        "{}: field `binary.board.flash_bytes` = {x}: must be a positive byte count",
+                        path.display()
+                    )
+                })
             })
     }
 
@@ -1569,6 +1576,13 @@ pub mod cli {
                 let [i, e, h, o] = a.dims[..] else {
                     bail!("--dims needs 4 sizes I,E,H,O, got {:?}", a.dims);
                 };
+                let max = crate::nn::model::MAX_LAYER_WIDTH;
+                if let Some(&bad) = a.dims.iter().find(|&&d| d == 0 || d > max) {
+                    bail!(
+                        "--dims {:?}: each size must be in 1..={max} (MAX_LAYER_WIDTH), got {bad}",
+                        a.dims
+                    );
+                }
                 let mut m = LstmModel::init(
                     LstmDims {
                         input: i,
@@ -1594,6 +1608,18 @@ pub mod cli {
 
     /// Exports `m` to `a.out`; returns the exported network and where its arrays live.
     pub fn export(m: &LstmModel, a: &ExportArgs) -> Result<(Exported, PlacementChoice)> {
+        let (net, placement, text) = render_export(m, a)?;
+        crate::nn::write_atomic(&a.out, text.as_bytes())?;
+        Ok((net, placement))
+    }
+
+    /// The exported network, where its arrays live, and the text of the Rust file
+    /// [`export`] writes to `a.out` (after every check: the do-no-harm gate, the flash
+    /// and SRAM budgets).
+    pub fn render_export(
+        m: &LstmModel,
+        a: &ExportArgs,
+    ) -> Result<(Exported, PlacementChoice, String)> {
         let difference = m
             .output_names
             .iter()
@@ -1672,9 +1698,7 @@ pub mod cli {
                 "// WARNING: exported with --allow-worse; the do-no-harm gate did not pass:\n{commented}{text}"
             );
         }
-        // A source file, 0644 like every output of write_atomic.
-        crate::nn::write_atomic(&a.out, text.as_bytes())?;
-        Ok((net, placement))
+        Ok((net, placement, text))
     }
 
     /// The do-no-harm gate of a trained network: an error listing the per-joint figures
@@ -1715,17 +1739,12 @@ pub mod cli {
         }
     }
 
-    /// Runs the subcommand.
+    /// Runs the subcommand: the Rust file and the accuracy JSON are written all or none,
+    /// after the accuracy log was read and evaluated.
     pub fn run(a: ExportArgs) -> Result<()> {
         let m = model(&a)?;
-        let (net, placement) = export(&m, &a)?;
-        println!(
-            "wrote {} ({}, {} bytes of network arrays)",
-            a.out.display(),
-            a.precision.name(),
-            net.flash_bytes()
-        );
-        println!("placement: {}", placement.describe());
+        let (net, placement, text) = render_export(&m, &a)?;
+        let mut accuracy_json = None;
         if let Some(log) = &a.accuracy_log {
             let table = crate::nn::data::Table::read(log)?;
             let spec = crate::nn::data::FeatureSpec::for_preset(&m.preset, &a.joints)
@@ -1740,17 +1759,40 @@ pub mod cli {
             let seq = spec
                 .sequence(&table)
                 .with_context(|| format!("{}", log.display()))?;
+            let rows = accuracy(&m, &seq.inputs, Some(&seq.targets))?;
+            crate::model_file::ensure_finite(
+                &format!("{}: accuracy", log.display()),
+                rows.iter().flat_map(|r| {
+                    [r.rms_vs_f32]
+                        .into_iter()
+                        .chain(r.compensated_rms)
+                        .chain(r.f32_compensated_rms)
+                }),
+            )?;
             println!(
                 "Accuracy on {} ({} steps, streamed from the zero state):\n",
                 log.display(),
                 seq.len()
             );
-            let rows = accuracy(&m, &seq.inputs, Some(&seq.targets))?;
             print!("{}", accuracy_markdown(&rows));
             if let Some(path) = &a.accuracy_json {
-                crate::nn::write_atomic(path, serde_json::to_string_pretty(&rows)?.as_bytes())?;
+                accuracy_json = Some((path, serde_json::to_string_pretty(&rows)?));
             }
         }
+        // The Rust file (a source file, 0644 like every staged output) and the accuracy
+        // JSON: all or none.
+        let mut files: Vec<(&Path, &[u8])> = vec![(&a.out, text.as_bytes())];
+        if let Some((path, json)) = &accuracy_json {
+            files.push((path.as_path(), json.as_bytes()));
+        }
+        crate::model_file::write_atomic_all(&files)?;
+        println!(
+            "wrote {} ({}, {} bytes of network arrays)",
+            a.out.display(),
+            a.precision.name(),
+            net.flash_bytes()
+        );
+        println!("placement: {}", placement.describe());
         Ok(())
     }
 }

@@ -9,6 +9,7 @@ pub mod demo;
 pub mod dynamics;
 pub mod excite;
 pub mod export;
+pub mod fuzz;
 pub mod identify;
 pub mod logs;
 pub mod model_file;

@@ -870,6 +870,73 @@ mod tests {
         let mut cfg = config();
         cfg.drive_gain_nm_per_a = f32::NAN;
         assert!(matches!(with_config(cfg), Err(ConfigError::NonPositive)));
+        // Zero is not positive; infinity is not finite; zero tick counts are refused.
+        for bad in [
+            |c: &mut CompensatorConfig| c.rate_hz = 0.0,
+            |c: &mut CompensatorConfig| c.max_torque_nm = f32::INFINITY,
+            |c: &mut CompensatorConfig| c.warmup_ticks = 0,
+            |c: &mut CompensatorConfig| c.watchdog_ticks = 0,
+        ] {
+            let mut cfg = config();
+            bad(&mut cfg);
+            assert!(matches!(with_config(cfg), Err(ConfigError::NonPositive)));
+        }
+    }
+
+    #[test]
+    fn warmup_blends_model_and_lstm_for_exactly_warmup_ticks() {
+        let mut c = new();
+        // An LSTM correction of 2 N*m (not 1, so that w * c and w / c differ).
+        c.lstm_mut().forced = Some(8.0);
+        let n = config().warmup_ticks;
+        for k in 0..n + 5 {
+            let o = tick(&mut c, u32::from(k) + 1, 3.0);
+            // Model 6 N*m; the LSTM's share and the whole feedforward both ramp in.
+            let w = (k.min(n) as f32) / n as f32;
+            let want = (6.0 + w * (8.0 - 6.0)) * w;
+            assert!(
+                (o.torque_nm - want).abs() < 1e-5,
+                "tick {k}: {o:?}, want {want}"
+            );
+            assert_eq!(o.faults.contains(FaultFlags::FF_WARMUP), k < n, "tick {k}");
+        }
+        assert_eq!(c.torque_nm(), 8.0);
+    }
+
+    #[test]
+    fn limits_flag_only_what_exceeds_them() {
+        // Exactly the torque limit (the current well within its own): not limited.
+        let mut cfg = config();
+        cfg.max_current_a = 10.0;
+        let mut c = with_config(cfg).unwrap();
+        c.lstm_mut().forced = Some(cfg.max_torque_nm);
+        c.model_mut().forced = Some(cfg.max_torque_nm - 1.0);
+        settle(&mut c, 0, 50.0, FeedforwardSource::ModelLstm);
+        // Exactly the 4 A current limit (40 N*m at 10 N*m/A): not limited either.
+        let mut c = new();
+        c.lstm_mut().forced = Some(40.0);
+        c.model_mut().forced = Some(39.0);
+        let k = settle(&mut c, 0, 40.0, FeedforwardSource::ModelLstm);
+        assert_eq!(tick(&mut c, k + 1, 3.0).current_a, 4.0);
+        // 45 N*m is within the torque limit, but 4.5 A is above the 4 A current limit.
+        let mut c = new();
+        c.lstm_mut().forced = Some(45.0);
+        c.model_mut().forced = Some(44.0);
+        let mut o = CompensatorOutput::default();
+        for k in 1..40 {
+            o = tick(&mut c, k, 3.0);
+        }
+        assert_eq!((o.torque_nm, o.current_a), (45.0, 4.0));
+        assert_eq!(o.faults, FaultFlags::FF_MAGNITUDE_LIMITED, "{o:?}");
+    }
+
+    #[test]
+    fn latched_faults_are_kept_until_cleared() {
+        let mut c = new();
+        c.tick(&state(3.0), 0);
+        assert!(c.latched_faults().contains(FaultFlags::STATE_STALE));
+        c.clear_latched();
+        assert_eq!(c.latched_faults(), FaultFlags::NONE);
     }
 
     #[test]

@@ -138,6 +138,21 @@ mod tests {
     use super::*;
 
     #[test]
+    fn set_if_and_union() {
+        let mut f = FaultFlags::NONE;
+        f.set_if(FaultFlags::STATE_STALE, false);
+        assert!(f.is_empty());
+        f.set_if(FaultFlags::STATE_STALE, true);
+        assert_eq!(f, FaultFlags::STATE_STALE);
+        let u = FaultFlags::STATE_STALE.union(FaultFlags::STATE_STALE);
+        assert_eq!(u, FaultFlags::STATE_STALE);
+        assert_eq!(
+            f.union(FaultFlags::OVERCURRENT).bits(),
+            FaultFlags::STATE_STALE.bits() | FaultFlags::OVERCURRENT.bits()
+        );
+    }
+
+    #[test]
     fn every_bit_has_one_name() {
         let mut all = 0u16;
         for (i, (flag, _)) in FaultFlags::NAMED.iter().enumerate() {

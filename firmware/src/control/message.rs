@@ -306,10 +306,29 @@ mod tests {
         };
         let frame = m.encode();
         let d = JointStateMessage::decode(&frame).unwrap();
+        // Field by field, not through to_array (which encode itself uses).
+        let fields = |s: &JointState| {
+            [
+                s.q_ref_rad,
+                s.qd_ref_rad_s,
+                s.qdd_ref_rad_s2,
+                s.q_meas_rad,
+                s.qd_meas_rad_s,
+                s.tau_meas_nm,
+            ]
+            .map(f32::to_bits)
+        };
         assert_eq!(
-            d.state.to_array().map(f32::to_bits),
-            m.state.to_array().map(f32::to_bits)
+            fields(&d.state),
+            [1.0, -2.0, 3.5, f32::NAN, 1e30, -0.25].map(f32::to_bits)
         );
+        assert_eq!(fields(&d.state), fields(&m.state));
+        // Either sync byte wrong (the CRC does not cover them): no message.
+        for k in 0..2 {
+            let mut unsynced = frame;
+            unsynced[k] ^= 0xFF;
+            assert!(JointStateMessage::decode(&unsynced).is_none());
+        }
         assert_eq!(
             (d.joint, d.session, d.sequence, d.timestamp_us),
             (2, 0xBEEF, 65535, 123_456_789)

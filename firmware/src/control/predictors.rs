@@ -416,5 +416,17 @@ mod tests {
         });
         assert!((out[0] - (8.0 + 3.0 + 5.0 + 10.0)).abs() < 1e-4, "{out:?}");
         assert_eq!(out[1], 0.0);
+        // The gravity phase adds to the angle: 10 sin(0.3 + 0.5), not 10 sin(0.3 - 0.5).
+        m.gravity_phase_rad = [0.5, 0.0];
+        let s = JointState {
+            q_ref_rad: 0.3,
+            ..Default::default()
+        };
+        let out = m.predict_nm(&PredictorInput {
+            joints: [s, JointState::default()],
+            own_joint: 0,
+            model_nm: [0.0; 2],
+        });
+        assert!((out[0] - 10.0 * libm::sinf(0.8)).abs() < 1e-3, "{out:?}");
     }
 }

@@ -10,7 +10,6 @@ use super::optimise::{ExcitationDesign, RestartReport};
 use super::trajectory::{ExcitationTrajectory, SampledTrajectory};
 use plotters::prelude::*;
 use serde::{Deserialize, Serialize};
-use std::io::Write;
 use std::path::{Path, PathBuf};
 
 /// Format tag of the coefficient file.
@@ -281,54 +280,36 @@ pub struct OutputPaths {
 }
 
 /// Writes the coefficient file, the playback CSV at the controller rate and the plot, all or
-/// nothing.
+/// nothing (`model_file::write_atomic_all`), after checking that every sample is finite.
 pub fn write_outputs(
     file: &ExcitationFile,
     joint_labels: &[String],
     paths: &OutputPaths,
 ) -> Result<(), ExciteError> {
     let sampled = file.trajectory.sample(file.rate_hz, 1);
+    crate::model_file::ensure_finite(
+        "the excitation trajectory's samples",
+        sampled
+            .q_rad
+            .iter()
+            .chain(&sampled.qd_rad_s)
+            .chain(&sampled.qdd_rad_s2)
+            .flatten()
+            .copied(),
+    )
+    .map_err(|e| ExciteError::Invalid(format!("{e:#}")))?;
     let json = serde_json::to_vec_pretty(file).map_err(|e| ExciteError::Io(e.to_string()))?;
     let csv = playback_csv(&file.layout, &sampled)?;
-    let mut staged = vec![(stage(&paths.json, &json)?, paths.json.clone())];
-    staged.push((stage(&paths.csv, &csv)?, paths.csv.clone()));
+    let mut files: Vec<(&Path, &[u8])> =
+        vec![(paths.json.as_path(), &json), (paths.csv.as_path(), &csv)];
+    let svg;
     if let Some(plot) = &paths.plot {
         let title = format!(
             "Excitation trajectory ({}, cond = {:.1})",
             file.robot, file.score.condition
         );
-        let svg = plot_svg(&sampled, joint_labels, &file.limits, &title)?;
-        staged.push((stage(plot, svg.as_bytes())?, plot.clone()));
+        svg = plot_svg(&sampled, joint_labels, &file.limits, &title)?;
+        files.push((plot.as_path(), svg.as_bytes()));
     }
-    for (tmp, dest) in staged {
-        tmp.persist(&dest)
-            .map_err(|e| ExciteError::Io(format!("{}: {}", dest.display(), e.error)))?;
-    }
-    Ok(())
-}
-
-fn stage(dest: &Path, bytes: &[u8]) -> Result<tempfile::NamedTempFile, ExciteError> {
-    let dir = match dest.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
-    let mut tmp = tempfile::NamedTempFile::new_in(&dir)
-        .map_err(|e| ExciteError::Io(format!("{}: {e}", dest.display())))?;
-    tmp.write_all(bytes)
-        .and_then(|_| tmp.flush())
-        .and_then(|_| make_readable(tmp.path()))
-        .map_err(|e| ExciteError::Io(format!("{}: {e}", dest.display())))?;
-    Ok(tmp)
-}
-
-/// Temporary files are created owner-only; outputs get the usual `rw-r--r--`.
-#[cfg(unix)]
-fn make_readable(path: &Path) -> std::io::Result<()> {
-    use std::os::unix::fs::PermissionsExt;
-    std::fs::set_permissions(path, std::fs::Permissions::from_mode(0o644))
-}
-
-#[cfg(not(unix))]
-fn make_readable(_path: &Path) -> std::io::Result<()> {
-    Ok(())
+    crate::model_file::write_atomic_all(&files).map_err(|e| ExciteError::Io(format!("{e:#}")))
 }

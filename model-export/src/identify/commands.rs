@@ -547,6 +547,10 @@ pub fn identify(a: &IdentifyArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// Largest |value| of an identified base parameter a model file may hold (SI units: a
+/// tonne, 1e6 kg m^2 or N m s/rad): an identified cobot's are below 1e3.
+pub const MAX_ABS_BASE_PARAMETER: f64 = 1e6;
+
 /// The robot and its standard parameters from an identified model file (JSON from
 /// `identify`): checks that the robot file is the one identified (SHA-256), applies the
 /// model's joint selection and terms, and maps the base parameters back.
@@ -608,6 +612,20 @@ pub fn load_identified(robot_path: &Path, mp: &Path) -> anyhow::Result<(Robot, D
             "{}, field base_parameters: they do not match the base parameters of {} with this joint selection and model terms (--friction-offset, --coulomb-smoothing-rad-s)",
             mp.display(),
             robot_path.display()
+        );
+    }
+    // A finite but huge value (3e38 fits an f32) overflows the torques it scales.
+    if let Some((k, b)) = file
+        .base_parameters
+        .iter()
+        .enumerate()
+        .find(|(_, b)| b.value.is_nan() || b.value.abs() > MAX_ABS_BASE_PARAMETER)
+    {
+        bail!(
+            "{}, field base_parameters[{k}].value ({}): {} is beyond the limit {MAX_ABS_BASE_PARAMETER:e} (MAX_ABS_BASE_PARAMETER, SI units)",
+            mp.display(),
+            b.name,
+            b.value
         );
     }
     let beta = DVector::from_iterator(names.len(), file.base_parameters.iter().map(|b| b.value));

@@ -204,6 +204,27 @@ pub fn preprocess(raw: &RawLog, opt: &PreprocessOptions) -> Result<Samples, LogE
             .collect::<Vec<_>>()
     });
 
+    // Finite but huge cells (1e300) overflow in the filter or the derivatives: what is
+    // derived is checked, not only what was read. The error names the log line nearest
+    // to the first bad sample.
+    let groups = [("q", Some(&q)), ("qd", Some(&qd)), ("qdd", Some(&qdd))];
+    for (name, values) in groups.into_iter().chain([("torque", torque.as_ref())]) {
+        for (j, v) in values.into_iter().flatten().enumerate() {
+            if let Some(k) = v.iter().position(|x| !x.is_finite()) {
+                let row = t.partition_point(|&x| x <= grid[k]).saturating_sub(1);
+                return Err(err(
+                    raw.lines.get(row).copied(),
+                    Some(format!("{name} of joint {}", j + 1).as_str()),
+                    format!(
+                        "not finite after resampling, filtering and differentiation at t = {} s \
+                         (a value too large near this line)",
+                        grid[k]
+                    ),
+                ));
+            }
+        }
+    }
+
     // Trim rest periods at both ends.
     let n = grid.len();
     let (mut lo, mut hi) = (0usize, n);

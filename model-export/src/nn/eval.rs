@@ -20,6 +20,15 @@ pub struct TargetEval {
     pub rms_persistence: Option<f64>,
 }
 
+impl TargetEval {
+    /// Every number of the row (checked finite before a report is written).
+    pub fn figures(&self) -> impl Iterator<Item = f64> + '_ {
+        [self.rms_before, self.rms_after, self.reduction_pct]
+            .into_iter()
+            .chain(self.rms_persistence)
+    }
+}
+
 /// Streams `m` from the zero state over `seq` and compares with the baselines.
 #[allow(clippy::needless_range_loop)] // three parallel per-step tables indexed alike
 pub fn evaluate(m: &LstmModel, seq: &Sequence) -> Result<Vec<TargetEval>> {

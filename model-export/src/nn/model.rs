@@ -8,6 +8,10 @@ use firmware::lstm::{InputActivation, LstmDims, LstmView};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
+/// Widest layer (input, embedding, hidden or output) a network may have: 16x the paper's
+/// 64, so a mistyped size is an error naming the limit, not a huge allocation.
+pub const MAX_LAYER_WIDTH: usize = 1024;
+
 /// A trained (or imported) compensation network with everything needed to run it.
 ///
 /// Weight layouts are PyTorch's: `nn.Linear.weight` `[out, in]`, `nn.LSTM` `weight_ih_l0`

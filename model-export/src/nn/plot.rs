@@ -62,14 +62,15 @@ pub fn loss_curve_svg(h: &History) -> Result<String> {
 
 /// The paper's Figures 12 and 13: per output, the measured torque, the prediction and
 /// the error over a streamed sequence, before compensation (the identified model alone)
-/// and after (the network, streamed through the firmware f32 step). Writes
-/// `fig12_before.svg` and `fig13_after.svg` in `dir` (atomically).
+/// and after (the network, streamed through the firmware f32 step): the file names
+/// (`fig12_before.svg`, `fig13_after.svg`) and their SVG text, for the caller to write
+/// with its other outputs.
 pub fn compensation_figures(
     m: &crate::nn::LstmModel,
     seq: &crate::nn::data::Sequence,
-    dir: &Path,
-) -> Result<()> {
+) -> Result<Vec<(&'static str, String)>> {
     let pred = m.stream(&seq.inputs)?;
+    let mut figures = Vec::new();
     let dt_s = 1.0 / 100.0;
     let column = |k: usize, f: &dyn Fn(usize) -> f32| -> Vec<(f64, f64)> {
         (0..seq.len())
@@ -138,9 +139,9 @@ pub fn compensation_figures(
             }
             root.present().map_err(|e| anyhow!("{e}"))?;
         }
-        crate::nn::write_atomic(&dir.join(file), svg.as_bytes())?;
+        figures.push((file, svg));
     }
-    Ok(())
+    Ok(figures)
 }
 
 /// Draws each `(points, colour, label)` as a line with a legend entry, then the legend.

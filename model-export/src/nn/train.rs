@@ -70,6 +70,14 @@ impl TrainConfig {
                 bail!("--{name} must be at least 1");
             }
         }
+        for (name, v) in [("embed", self.embed), ("hidden", self.hidden)] {
+            if v > super::model::MAX_LAYER_WIDTH {
+                bail!(
+                    "--{name} {v}: at most {} (MAX_LAYER_WIDTH)",
+                    super::model::MAX_LAYER_WIDTH
+                );
+            }
+        }
         if let Some(lr) = self.lr.filter(|lr| !(lr.is_finite() && *lr > 0.0)) {
             bail!("--lr must be a finite number above 0 (got {lr})");
         }

@@ -530,6 +530,12 @@ pub struct Robot {
     pub terms: ModelTerms,
 }
 
+/// Largest |offset| of a joint origin or link frame in a robot description [m].
+pub const MAX_ABS_OFFSET_M: f64 = 1e3;
+/// Largest |value| of a standard parameter derived from a robot description (mass,
+/// first moment, inertia, friction; SI units).
+pub const MAX_ABS_STANDARD_PARAMETER: f64 = 1e9;
+
 impl Robot {
     /// Loads a robot: `.urdf` or `.xml` as URDF, `.toml` as a DH table; a URDF tree's
     /// default chain ([`Robot::load_chain`] returns the folded joints as well).
@@ -566,9 +572,14 @@ impl Robot {
             .map(|e| e.to_ascii_lowercase())
             .as_deref()
         {
-            Some("urdf") | Some("xml") => urdf::parse(&text, path, selection),
+            Some("urdf") | Some("xml") => urdf::parse(&text, path, selection).and_then(|l| {
+                Ok(LoadedRobot {
+                    robot: l.robot.check_derived()?,
+                    ..l
+                })
+            }),
             Some("toml") if selection.is_default() => Ok(LoadedRobot {
-                robot: dh::parse(&text, path)?,
+                robot: dh::parse(&text, path)?.check_derived()?,
                 chain_links: None,
                 folded: Vec::new(),
             }),
@@ -589,7 +600,9 @@ impl Robot {
 
     /// Parses URDF text (`file` names it in errors).
     pub fn from_urdf_str(text: &str, file: impl AsRef<Path>) -> Result<Robot, RobotError> {
-        Ok(urdf::parse(text, file.as_ref(), &ChainSelection::default())?.robot)
+        urdf::parse(text, file.as_ref(), &ChainSelection::default())?
+            .robot
+            .check_derived()
     }
 
     /// Parses URDF text and selects one chain of its tree (`file` names it in errors).
@@ -598,12 +611,61 @@ impl Robot {
         file: impl AsRef<Path>,
         selection: &ChainSelection,
     ) -> Result<LoadedRobot, RobotError> {
-        urdf::parse(text, file.as_ref(), selection)
+        let l = urdf::parse(text, file.as_ref(), selection)?;
+        Ok(LoadedRobot {
+            robot: l.robot.check_derived()?,
+            ..l
+        })
     }
 
     /// Parses a DH table in TOML (`file` names it in errors); schema in the crate README.
     pub fn from_dh_toml_str(text: &str, file: impl AsRef<Path>) -> Result<Robot, RobotError> {
-        dh::parse(text, file.as_ref())
+        dh::parse(text, file.as_ref()).and_then(Robot::check_derived)
+    }
+
+    /// Checks what the parsers derived, not only what they read: a finite but huge
+    /// value (a 1e300 COM offset) gives an infinite inertia once scaled. Every joint
+    /// origin and link frame offset within [`MAX_ABS_OFFSET_M`], every standard parameter
+    /// within [`MAX_ABS_STANDARD_PARAMETER`]; the error names the joint or parameter.
+    fn check_derived(self) -> Result<Robot, RobotError> {
+        let fail = |field: String, message: String| RobotError {
+            file: self.source.clone(),
+            line: None,
+            field,
+            message,
+        };
+        for j in &self.joints {
+            let offsets = std::iter::once(&j.origin_translation)
+                .chain(j.link_frame.as_ref().map(|(_, p)| p))
+                .flat_map(|p| p.iter());
+            if let Some(v) = offsets
+                .copied()
+                .find(|v| v.is_nan() || v.abs() > MAX_ABS_OFFSET_M)
+            {
+                return Err(fail(
+                    format!("joint `{}` origin", j.name),
+                    format!(
+                        "offset {v:e} m is beyond the limit {MAX_ABS_OFFSET_M:e} m (MAX_ABS_OFFSET_M)"
+                    ),
+                ));
+            }
+        }
+        let theta = self.standard_parameters();
+        if let Some((k, v)) = theta
+            .iter()
+            .enumerate()
+            .find(|(_, v)| v.is_nan() || v.abs() > MAX_ABS_STANDARD_PARAMETER)
+        {
+            let name = self.parameter_names().get(k).cloned().unwrap_or_default();
+            return Err(fail(
+                format!("standard parameter {name}"),
+                format!(
+                    "{v:e} (from the masses, centres of mass, inertias and friction) is beyond \
+                     the limit {MAX_ABS_STANDARD_PARAMETER:e} (MAX_ABS_STANDARD_PARAMETER, SI units)"
+                ),
+            ));
+        }
+        Ok(self)
     }
 
     /// Number of joints (= links) in the chain.

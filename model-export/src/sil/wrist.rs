@@ -890,20 +890,32 @@ pub fn run_sil_cli(a: &SilArgs) -> anyhow::Result<()> {
             ))
             .unwrap_or_default()
     );
+    crate::model_file::ensure_finite(
+        "the wrist SIL results",
+        reports
+            .iter()
+            .flat_map(|r| &r.joints)
+            .flat_map(|j| [j.rms_error_rad, j.max_error_rad, j.rms_iq_a]),
+    )?;
     let md = format!("{title}\n\n{}", markdown_table(&reports));
     print!("{md}");
-    if let Some(p) = &a.markdown {
-        crate::model_file::write_atomic(p, md.as_bytes())?;
-    }
-    if let Some(p) = &a.json {
-        let v = serde_json::json!({
+    let json = match &a.json {
+        Some(_) => Some(serde_json::to_string_pretty(&serde_json::json!({
             "title": title,
             "duration_s": setup.duration_s,
             "compensator_hz": a.compensator_hz,
             "seed": a.seed,
             "results": reports,
-        });
-        crate::model_file::write_atomic(p, serde_json::to_string_pretty(&v)?.as_bytes())?;
-    }
-    Ok(())
+        }))?),
+        None => None,
+    };
+    // The Markdown and the JSON table: both or neither.
+    let files: Vec<(&std::path::Path, &[u8])> = [
+        a.markdown.as_deref().map(|p| (p, md.as_bytes())),
+        a.json.as_deref().zip(json.as_deref().map(str::as_bytes)),
+    ]
+    .into_iter()
+    .flatten()
+    .collect();
+    crate::model_file::write_atomic_all(&files)
 }

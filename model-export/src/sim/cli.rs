@@ -232,7 +232,8 @@ pub fn run_simulate(args: &SimulateArgs) -> anyhow::Result<()> {
     } else if let Some((_, fixed)) = layout {
         cfg.locked_position_rad = fixed;
     }
-    let log = super::simulate(&arm, &plant, &traj, &cfg)?;
+    let log = super::simulate(&arm, &plant, &traj, &cfg)
+        .with_context(|| format!("{}", source.display()))?;
     log.save(&args.output)?;
     eprintln!(
         "wrote {} ({} samples at {} Hz, {:.1} s)",

@@ -155,23 +155,28 @@ impl SimulatedLog {
         Ok(())
     }
 
-    /// Writes the CSV to `path` atomically (temporary file in the same folder, then rename).
+    /// Writes the CSV to `path` atomically (`model_file::write_atomic`), after checking
+    /// that every value is finite (the row is named in the error).
     pub fn save(&self, path: &Path) -> anyhow::Result<()> {
-        let dir = path
-            .parent()
-            .filter(|p| !p.as_os_str().is_empty())
-            .unwrap_or(Path::new("."));
-        let mut tmp = tempfile::NamedTempFile::new_in(dir)
-            .with_context(|| format!("{}: cannot create", path.display()))?;
+        if let Some(k) = self
+            .rows
+            .iter()
+            .position(|r| r.iter().any(|v| !v.is_finite()))
         {
-            let mut buf = std::io::BufWriter::new(tmp.as_file_mut());
-            self.write_csv(&mut buf)
-                .with_context(|| format!("{}: write failed", path.display()))?;
-            buf.flush()?;
+            crate::model_file::ensure_finite(
+                &format!(
+                    "{}: simulated row {} (t = {} s); nothing written",
+                    path.display(),
+                    k + 1,
+                    self.rows[k].first().copied().unwrap_or(f64::NAN)
+                ),
+                self.rows[k].iter().copied(),
+            )?;
         }
-        tmp.persist(path)
-            .with_context(|| format!("{}: cannot rename into place", path.display()))?;
-        Ok(())
+        let mut csv = Vec::new();
+        self.write_csv(&mut csv)
+            .with_context(|| format!("{}: write failed", path.display()))?;
+        crate::model_file::write_atomic(path, &csv)
     }
 }
 

@@ -18,6 +18,16 @@ pub struct PlaybackTrajectory {
     pub qdd_rad_s2: Vec<Vec<f64>>,
 }
 
+/// Largest harmonic count of a Fourier trajectory file (the designer uses 5).
+pub const MAX_HARMONICS: usize = 1000;
+/// Largest position bound |q0| + sum(|a_k| + |b_k|) a Fourier trajectory may imply [rad].
+pub const MAX_TRAJECTORY_Q_RAD: f64 = 1e3;
+/// Largest velocity bound sum(k w (|a_k| + |b_k|)) a Fourier trajectory may imply [rad/s].
+pub const MAX_TRAJECTORY_QD_RAD_S: f64 = 1e4;
+/// Largest acceleration bound sum((k w)^2 (|a_k| + |b_k|)) a Fourier trajectory may imply
+/// [rad/s^2].
+pub const MAX_TRAJECTORY_QDD_RAD_S2: f64 = 1e6;
+
 /// The motion the robot is commanded to follow, for the joints it drives.
 #[derive(Debug, Clone, PartialEq)]
 pub enum CommandedTrajectory {
@@ -103,6 +113,11 @@ impl ExcitationTrajectory {
             self.period_s
         );
         ensure!(!self.joints.is_empty(), "no joints");
+        ensure!(
+            self.harmonics <= MAX_HARMONICS,
+            "field harmonics = {}: at most {MAX_HARMONICS}",
+            self.harmonics
+        );
         for (j, jf) in self.joints.iter().enumerate() {
             ensure!(
                 jf.a_rad.len() == self.harmonics && jf.b_rad.len() == self.harmonics,
@@ -115,6 +130,31 @@ impl ExcitationTrajectory {
                 "joint {}: non-finite coefficient",
                 j + 1
             );
+            // Finite coefficients can still overflow once scaled by k w and (k w)^2:
+            // the bounds of q, qd and qdd they imply are checked, not only the inputs.
+            let w = self.omega_rad_s();
+            let (mut q, mut qd, mut qdd) = (jf.q0_rad.abs(), 0.0f64, 0.0f64);
+            for (k, (a, b)) in jf.a_rad.iter().zip(&jf.b_rad).enumerate() {
+                let (amp, kw) = (a.abs() + b.abs(), (k + 1) as f64 * w);
+                q += amp;
+                qd += kw * amp;
+                qdd += kw * kw * amp;
+            }
+            for (field, bound, max) in [
+                ("q0_rad, a_rad, b_rad: |q|", q, MAX_TRAJECTORY_Q_RAD),
+                ("a_rad, b_rad, period_s: |qd|", qd, MAX_TRAJECTORY_QD_RAD_S),
+                (
+                    "a_rad, b_rad, period_s: |qdd|",
+                    qdd,
+                    MAX_TRAJECTORY_QDD_RAD_S2,
+                ),
+            ] {
+                ensure!(
+                    bound <= max,
+                    "joint {}, fields {field} can reach {bound:e}, above the limit {max:e}",
+                    j + 1
+                );
+            }
         }
         Ok(())
     }

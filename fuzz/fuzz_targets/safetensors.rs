@@ -1,0 +1,5 @@
+#![no_main]
+//! `model_export::fuzz::safetensors_target` under libFuzzer.
+use libfuzzer_sys::fuzz_target;
+
+fuzz_target!(|data: &[u8]| model_export::fuzz::safetensors_target(data));
