@@ -147,3 +147,29 @@ fn graphs_outside_the_supported_network_are_refused_naming_the_node() {
         "not an ONNX model",
     );
 }
+
+#[test]
+fn an_input_layer_straight_into_the_lstm_imports_as_the_linear_input_layer() {
+    // The fixture with its Tanh removed: what `torch.onnx.export` writes for a plain
+    // `nn.Linear` input layer.
+    let bytes = edited(|m| {
+        let g = m.graph.as_mut().unwrap();
+        let k = g.node.iter().position(|n| n.op_type == "Tanh").unwrap();
+        let tanh = g.node.remove(k);
+        for n in &mut g.node {
+            for i in &mut n.input {
+                if *i == tanh.output[0] {
+                    *i = tanh.input[0].clone();
+                }
+            }
+        }
+    });
+    let linear = onnx::parse_onnx_model(&bytes).unwrap();
+    let tanh = onnx::read_onnx_model(&fixture("torch_lstm.onnx")).unwrap();
+    assert_eq!(
+        linear.input_activation,
+        firmware::lstm::InputActivation::Linear
+    );
+    assert_eq!(tanh.input_activation, firmware::lstm::InputActivation::Tanh);
+    assert_eq!(linear.tensors(), tanh.tensors());
+}
