@@ -386,10 +386,11 @@ impl CycleModel {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
-    fn ins(addr: u32, size: u32, m: &str, ops: &str) -> Instr {
+    /// An instruction at `addr` of `size` bytes (test sequences).
+    pub(crate) fn ins(addr: u32, size: u32, m: &str, ops: &str) -> Instr {
         Instr {
             addr,
             size,

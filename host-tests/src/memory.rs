@@ -423,14 +423,7 @@ fn fp_operands(instr: &Instr) -> (String, Option<String>, Vec<String>) {
 mod tests {
     use super::*;
 
-    fn ins(addr: u32, size: u32, m: &str, ops: &str) -> Instr {
-        Instr {
-            addr,
-            size,
-            mnemonic: m.into(),
-            operands: ops.into(),
-        }
-    }
+    use crate::cycles::tests::ins;
 
     /// Replays `code` (each with its zero-wait cycles and accesses) and returns the
     /// cycles on the chip.

@@ -589,6 +589,13 @@ fn files(command: &Command) -> (Vec<&Path>, Vec<&Path>) {
     }
 }
 
+/// Parses the arguments after `model-export` and runs them, as the binary does with its
+/// command line.
+pub fn run_args(args: &[&str]) -> anyhow::Result<()> {
+    let line = std::iter::once("model-export").chain(args.iter().copied());
+    run(Cli::try_parse_from(line)?)
+}
+
 /// Runs one parsed command line.
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     let (inputs, outputs) = files(&cli.command);

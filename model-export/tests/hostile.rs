@@ -1,8 +1,7 @@
 //! Hostile command lines: an output that is one of the inputs is refused before anything
 //! is read or written (the input stays as it was), and training sizes of 0 are errors,
 //! not panics.
-use clap::Parser;
-use model_export::cli::{Cli, run};
+use model_export::cli::run_args as cli;
 use std::path::Path;
 
 /// A small `feedforward` dataset of joint 4 in `dir`; returns its path.
@@ -42,12 +41,6 @@ fn train_args(dir: &Path) -> (Vec<String>, std::path::PathBuf, std::path::PathBu
     .map(String::from)
     .to_vec();
     (args, out, plot)
-}
-
-fn cli(args: &[&str]) -> anyhow::Result<()> {
-    let mut v = vec!["model-export"];
-    v.extend_from_slice(args);
-    run(Cli::try_parse_from(v)?)
 }
 
 fn robot() -> String {

@@ -1,14 +1,7 @@
 //! A network, a dataset or a preset that do not match: `evaluate` names both sides (the
 //! network's preset and features, the data's), exits with an error and writes nothing.
-use clap::Parser;
-use model_export::cli::{Cli, run};
+use model_export::cli::run_args as cli;
 use std::path::Path;
-
-fn cli(args: &[&str]) -> anyhow::Result<()> {
-    let mut v = vec!["model-export"];
-    v.extend_from_slice(args);
-    run(Cli::try_parse_from(v)?)
-}
 
 /// A `feedforward` dataset of joints 4 and 5, and a network trained on it for joint 4 (one
 /// epoch); returns (dataset, network) paths.

@@ -3,8 +3,7 @@
 //! and evaluates exactly like the same samples as CSV, and hostile bags are refused with
 //! the file, topic and field named, nothing written.
 use byteorder::LittleEndian;
-use clap::Parser;
-use model_export::cli::{Cli, run};
+use model_export::cli::run_args as cli;
 use model_export::logs::{BagOptions, LogLayout, read_log, read_robot_log, rosbag};
 use serde::Serialize;
 use std::collections::BTreeMap;
@@ -43,12 +42,6 @@ fn csv_layout() -> LogLayout {
     let mut l = LogLayout::sequential(6, true, true, None);
     l.header = Some(true);
     l
-}
-
-fn cli(args: &[&str]) -> anyhow::Result<()> {
-    let mut v = vec!["model-export"];
-    v.extend_from_slice(args);
-    run(Cli::try_parse_from(v)?)
 }
 
 #[test]

@@ -4,6 +4,7 @@
 
 use firmware::control::FaultFlags;
 use firmware::lstm::LstmDims;
+use model_export::cli::run_args as cli;
 use model_export::nn::model::LstmModel;
 use model_export::sil::wrist::{WRIST_JOINTS, WristFeedforward, WristLstm, WristSetup, run_wrist};
 use model_export::sim::{CommandedTrajectory, PlantParameters};
@@ -107,13 +108,6 @@ fn lstm_stage_runs_in_both_precisions_through_the_firmware_predictor() {
             assert!(a.rms_error_rad < 2e-3);
         }
     }
-}
-
-fn cli(args: &[&str]) -> anyhow::Result<()> {
-    use clap::Parser;
-    let mut v = vec!["model-export"];
-    v.extend_from_slice(args);
-    model_export::cli::run(model_export::cli::Cli::try_parse_from(v)?)
 }
 
 #[test]
