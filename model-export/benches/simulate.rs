@@ -1,5 +1,5 @@
-//! Benchmark: simulate 60 s of the default 6-DoF arm at a 1 kHz internal rate (issue 4's
-//! target: under 2 s). Prints a table; run with `cargo bench -p model-export --bench simulate`.
+//! Benchmark: simulate 60 s of the default 6-DoF arm at a 1 kHz internal rate (the
+//! simulator's target: under 2 s). Prints a table; run with `cargo bench -p model-export --bench simulate`.
 use model_export::excite::{ExcitationTrajectory, JointFourier};
 use model_export::sim::{
     self, CommandedTrajectory, PlantEffects, PlantParameters, SimulationConfig,

@@ -1,4 +1,4 @@
-//! Issue 4's proofs about the default robot and the plant simulator.
+//! The default robot and the plant simulator: what the simulated logs must show.
 use model_export::excite::ExcitationTrajectory;
 use model_export::robot::Robot;
 use model_export::sim::{

@@ -1,4 +1,4 @@
-//! Excitation trajectory design (issue 5): optimised finite Fourier series under joint limits.
+//! Excitation trajectory design: optimised finite Fourier series under joint limits.
 //!
 //! - [`trajectory`]: the family `q_i(t) = q_i0 + Σ_k a_ik sin(kω_f t) + b_ik cos(kω_f t)`.
 //! - [`constraints`]: rest and point equality constraints by construction (null-space

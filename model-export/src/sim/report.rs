@@ -194,7 +194,7 @@ mod tests {
         sim::simulate(&arm, &plant, &tr, &cfg).unwrap()
     }
 
-    /// Issue 4's proof: with every unmodelled effect off, identifying the default robot
+    /// With every unmodelled effect off, identifying the default robot
     /// from its own simulated log recovers its true base parameters.
     #[test]
     fn ideal_plant_identification_recovers_true_base_parameters() {
