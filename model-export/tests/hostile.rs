@@ -500,6 +500,23 @@ fn keep(paths: &[&Path]) -> impl Fn() + use<> {
     }
 }
 
+/// Runs `args(bad)`, which must fail with an error containing `expect` and leave the
+/// outputs as they were (`unchanged`), then `args(ok)`, which must succeed.
+fn refused_then_written<const N: usize>(
+    args: impl Fn(&str) -> [String; N],
+    (bad, expect): (&str, &str),
+    unchanged: impl Fn(),
+    ok: &str,
+) {
+    let e = format!(
+        "{:#}",
+        cli(&args(bad).each_ref().map(String::as_str)).unwrap_err()
+    );
+    assert!(e.contains(expect), "{e}");
+    unchanged();
+    cli(&args(ok).each_ref().map(String::as_str)).unwrap();
+}
+
 /// A one-epoch feedforward network of joint 4 trained on [`feedforward_data`] in `dir`.
 fn small_network(dir: &Path) -> (String, String) {
     let (base, out, _) = train_args(dir);
@@ -551,14 +568,8 @@ fn evaluate_writes_its_figures_and_report_all_or_none() {
         ]
         .map(str::to_string)
     };
-    let e = format!(
-        "{:#}",
-        cli(&args(&r).each_ref().map(String::as_str)).unwrap_err()
-    );
-    assert!(e.contains("not a regular file"), "{e}");
-    unchanged();
     let report = dir.path().join("ok.json").display().to_string();
-    cli(&args(&report).each_ref().map(String::as_str)).unwrap();
+    refused_then_written(args, (&r, "not a regular file"), unchanged, &report);
     assert!(std::fs::read_to_string(&after).unwrap().contains("<svg"));
     assert!(
         std::fs::read_to_string(&report)
@@ -597,13 +608,7 @@ fn export_writes_its_source_and_accuracy_all_or_none() {
     let bad = dir.path().join("bad.csv");
     std::fs::write(&bad, "time_s,q_j4\n0,x\n").unwrap();
     let b = bad.display().to_string();
-    let e = format!(
-        "{:#}",
-        cli(&args(&b).each_ref().map(String::as_str)).unwrap_err()
-    );
-    assert!(e.contains("bad.csv"), "{e}");
-    unchanged();
-    cli(&args(&data).each_ref().map(String::as_str)).unwrap();
+    refused_then_written(args, (&b, "bad.csv"), unchanged, &data);
     assert!(std::fs::read_to_string(&out).unwrap().contains("SCHEMA"));
     assert!(
         std::fs::read_to_string(&json)
@@ -685,14 +690,8 @@ fn sil_writes_its_markdown_and_json_all_or_none() {
         ]
         .map(str::to_string)
     };
-    let e = format!(
-        "{:#}",
-        cli(&args(&j).each_ref().map(String::as_str)).unwrap_err()
-    );
-    assert!(e.contains("not a regular file"), "{e}");
-    unchanged();
     let ok = dir.path().join("ok.json").display().to_string();
-    cli(&args(&ok).each_ref().map(String::as_str)).unwrap();
+    refused_then_written(args, (&j, "not a regular file"), unchanged, &ok);
     assert!(
         std::fs::read_to_string(&md)
             .unwrap()
