@@ -9,20 +9,18 @@
 //! identification limits (1 rad/s, 3 rad/s² on every joint). Targets: 3 joints < 60 s,
 //! 6 joints < 5 min.
 //!
-//! Robot: `model-export/robots/default.toml` if present, else the UR10e URDF under
+//! Robot: `robots/default.toml` if present, else the UR10e URDF under
 //! `$DATASETS_DIR` (default `../shared/datasets`), with 8 rad/s² acceleration limits.
 
-use model_export::excite::optimise::DEFAULT_BASELINE_COUNT;
-use model_export::excite::robot_model::{LimitOverrides, RobotObservation, joint_limits};
-use model_export::excite::{
-    BaselineScaling, ExcitationSettings, FourierFamily, design, random_baseline,
-};
-use model_export::robot::Robot;
+use excitation::optimise::DEFAULT_BASELINE_COUNT;
+use excitation::robot_model::{LimitOverrides, RobotObservation, joint_limits};
+use excitation::{BaselineScaling, ExcitationSettings, FourierFamily, design, random_baseline};
+use robot::Robot;
 use std::path::PathBuf;
 
 fn robot() -> Option<(Robot, LimitOverrides)> {
     let manifest = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
-    let default = manifest.join("robots/default.toml");
+    let default = manifest.join("../robots/default.toml");
     if default.exists() {
         return Some((Robot::load(&default).ok()?, LimitOverrides::default()));
     }

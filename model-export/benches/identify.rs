@@ -4,14 +4,15 @@
 //! Run: `cargo bench -p model-export --bench identify`. Prints wall-clock times of
 //! the stages (best of 3 runs) on this machine; target: whole identification < 1 s.
 
-use model_export::identify::commands::{JointArgs, RobotBaseModel, load_robot};
-use model_export::identify::pipeline::{self, LinearModel};
-use model_export::identify::{IdentifyOptions, Weighting, solve};
-use model_export::logs::Samples;
+use identify::identified::{ModelSelection, RobotBaseModel, load_robot};
+use identify::pipeline::{self, LinearModel};
+use identify::{IdentifyOptions, Weighting, solve};
+use logs::Samples;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
-use std::path::{Path, PathBuf};
+use robot::RobotSource;
+use std::path::PathBuf;
 use std::time::Instant;
 
 const ROBOT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/ur_type_6r.toml");
@@ -71,14 +72,13 @@ fn best<T>(mut f: impl FnMut() -> T) -> (f64, T) {
 }
 
 fn main() {
-    let joints = JointArgs {
-        lock: vec![],
-        friction_offset: false,
-        coulomb_smoothing_rad_s: None,
-        friction_model: model_export::identify::commands::FrictionModel::Paper,
-        chain: Default::default(),
-    };
-    let m = RobotBaseModel::new(load_robot(Path::new(ROBOT), &joints).unwrap()).unwrap();
+    let source = RobotSource::File(ROBOT.into());
+    let m = RobotBaseModel::new(
+        load_robot(&source, &ModelSelection::default())
+            .unwrap()
+            .robot,
+    )
+    .unwrap();
     let names = m.parameter_names();
     let logs = [simulate(&m, SAMPLES)];
     let s = &logs[0];

@@ -5,8 +5,8 @@
 //! back when `python3 -c 'import torch'` works; otherwise its columns say so).
 //!
 //! `cargo bench -p model-export --bench lstm_epoch [-- --burn-in 50 --epochs 3]`
-use model_export::nn::data::Sequence;
-use model_export::nn::train::{TrainConfig, new_model, time_epochs};
+use compnet::data::Sequence;
+use compnet::train::{TrainConfig, new_model, time_epochs};
 use std::process::Command;
 
 fn arg(name: &str, default: usize) -> usize {

@@ -1,18 +1,16 @@
 //! Benchmark: simulate 60 s of the default 6-DoF arm at a 1 kHz internal rate (the
 //! simulator's target: under 2 s). Prints a table; run with `cargo bench -p model-export --bench simulate`.
-use model_export::excite::{ExcitationTrajectory, JointFourier};
-use model_export::sim::{
-    self, CommandedTrajectory, PlantEffects, PlantParameters, SimulationConfig,
-};
+use excitation::{ExcitationTrajectory, JointFourier};
+use plant_sim::{self, CommandedTrajectory, PlantEffects, PlantParameters, SimulationConfig};
 use std::time::Instant;
 
 fn main() {
-    let robot = model_export::robot::Robot::load(concat!(
+    let robot = robot::Robot::load(concat!(
         env!("CARGO_MANIFEST_DIR"),
-        "/robots/default.toml"
+        "/../robots/default.toml"
     ))
     .expect("default robot");
-    let arm = sim::RobotRigidBody::new(&robot);
+    let arm = plant_sim::RobotRigidBody::new(&robot);
     let plant = PlantParameters::default_robot();
     let series = ExcitationTrajectory {
         period_s: 10.0,
@@ -42,7 +40,7 @@ fn main() {
         let mut rows = 0;
         for _ in 0..5 {
             let t0 = Instant::now();
-            let log = sim::simulate(&arm, &plant, &traj, &cfg).expect("simulate");
+            let log = plant_sim::simulate(&arm, &plant, &traj, &cfg).expect("simulate");
             best = best.min(t0.elapsed().as_secs_f64());
             rows = log.rows.len();
         }

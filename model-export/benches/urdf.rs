@@ -2,7 +2,7 @@
 //! tree of fixed joints on one moving joint). Reading is linear: the time per joint stays
 //! flat as N grows. Prints a table (wall-clock, best of 3); run with
 //! `cargo bench -p model-export --bench urdf`.
-use model_export::robot::Robot;
+use robot::Robot;
 use std::time::Instant;
 
 fn chain(n: usize) -> String {

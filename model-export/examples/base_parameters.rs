@@ -1,8 +1,8 @@
 //! Prints a robot's base parameters: count, rank decision gap, and expressions.
 //!
 //! `cargo run -p model-export --example base_parameters -- ROBOT.(urdf|toml) [--rigid] [--paper]`
-use model_export::base::{BaseParameters, RANK_TOLERANCE};
-use model_export::robot::{ModelTerms, Robot};
+use robot::base::{BaseParameters, RANK_TOLERANCE};
+use robot::{ModelTerms, Robot};
 
 fn main() -> anyhow::Result<()> {
     let args: Vec<String> = std::env::args().skip(1).collect();

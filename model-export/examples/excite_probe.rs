@@ -17,15 +17,15 @@
 //! [evaluations]`: the smallest condition numbers found for the wrist's friction and
 //! gravity + friction column subsets (lower bounds for the full `W` of the same trajectory).
 
-use model_export::excite::objective::observation_matrix;
-use model_export::excite::optimise::baseline_seed;
-use model_export::excite::robot_model::{LimitOverrides, RobotObservation, joint_limits};
-use model_export::excite::{
+use excitation::objective::observation_matrix;
+use excitation::optimise::baseline_seed;
+use excitation::robot_model::{LimitOverrides, RobotObservation, joint_limits};
+use excitation::{
     BaselineScaling, Criterion, ExcitationSettings, ExcitationTrajectory, FourierFamily,
     ObservationModel, design, random_feasible,
 };
-use model_export::robot::Robot;
 use nalgebra::DMatrix;
+use robot::Robot;
 
 /// A printed metric: name, getter, and whether its factor is random / optimised (else
 /// exp((optimised − random) / p), for the log-determinant).
@@ -178,7 +178,7 @@ impl ObservationModel for Subset<'_> {
 }
 
 fn subset_floors(restarts: usize, evals: usize) {
-    use model_export::excite::optimise::final_score;
+    use excitation::optimise::final_score;
     let model = RobotObservation::new(default_robot().default_paper_selection()).unwrap();
     let base = model.base();
     let names: Vec<String> = base
@@ -240,8 +240,8 @@ fn subset_floors(restarts: usize, evals: usize) {
     }
 }
 
-fn friction_floor(lim: model_export::excite::JointLimits, restarts: usize, evals: usize) {
-    use model_export::excite::optimise::final_score;
+fn friction_floor(lim: excitation::JointLimits, restarts: usize, evals: usize) {
+    use excitation::optimise::final_score;
     let family = FourierFamily::new(10.0, 5, &[0.0], &[lim], &[], 1000.0).unwrap();
     let settings = ExcitationSettings {
         restarts,
@@ -275,7 +275,7 @@ fn friction_floor(lim: model_export::excite::JointLimits, restarts: usize, evals
 fn default_robot() -> Robot {
     Robot::load(std::path::Path::new(concat!(
         env!("CARGO_MANIFEST_DIR"),
-        "/robots/default.toml"
+        "/../robots/default.toml"
     )))
     .unwrap()
 }
@@ -286,11 +286,7 @@ fn main() {
         let r: usize = args.get(1).and_then(|s| s.parse().ok()).unwrap_or(4);
         let e: usize = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(6000);
         friction_floor(
-            model_export::excite::JointLimits::symmetric(
-                std::f64::consts::TAU,
-                std::f64::consts::PI,
-                12.0,
-            ),
+            excitation::JointLimits::symmetric(std::f64::consts::TAU, std::f64::consts::PI, 12.0),
             r,
             e,
         );

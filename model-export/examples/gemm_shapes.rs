@@ -4,7 +4,7 @@
 //! the comparison; wall clock where that file is missing).
 //!
 //! `cargo run --release -p model-export --example gemm_shapes`
-use model_export::nn::gemm::{Op, sgemm_gemm, sgemm_mm};
+use compnet::gemm::{Op, sgemm_gemm, sgemm_mm};
 use std::time::Instant;
 
 /// Nanoseconds this thread has run on a CPU, or wall-clock nanoseconds if unknown.

@@ -191,7 +191,7 @@ pub fn read_corpus(dir: &Path) -> std::io::Result<Vec<Vec<u8>>> {
 /// DH table in TOML: parse; a robot that parses has finite standard parameters.
 pub fn dh_toml_target(data: &[u8]) {
     let text = String::from_utf8_lossy(data);
-    if let Ok(robot) = crate::robot::Robot::from_dh_toml_str(&text, "fuzz.toml") {
+    if let Ok(robot) = robot::Robot::from_dh_toml_str(&text, "fuzz.toml") {
         check_robot(&robot);
     }
 }
@@ -200,12 +200,12 @@ pub fn dh_toml_target(data: &[u8]) {
 /// parameters.
 pub fn urdf_target(data: &[u8]) {
     let text = String::from_utf8_lossy(data);
-    if let Ok(robot) = crate::robot::Robot::from_urdf_str(&text, "fuzz.urdf") {
+    if let Ok(robot) = robot::Robot::from_urdf_str(&text, "fuzz.urdf") {
         check_robot(&robot);
     }
 }
 
-fn check_robot(robot: &crate::robot::Robot) {
+fn check_robot(robot: &robot::Robot) {
     let p = robot.standard_parameters();
     assert!(
         p.iter().all(|x| x.is_finite()),
@@ -218,9 +218,9 @@ fn check_robot(robot: &crate::robot::Robot) {
 pub fn log_csv_target(dir: &Path, data: &[u8]) {
     let path = dir.join("log.csv");
     std::fs::write(&path, data).expect("fuzz scratch folder");
-    let layout = crate::logs::LogLayout::sequential(2, true, true, None);
-    if let Ok(raw) = crate::logs::read_log(&path, &layout)
-        && let Ok(s) = crate::logs::preprocess(&raw, &crate::logs::PreprocessOptions::default())
+    let layout = logs::LogLayout::sequential(2, true, true, None);
+    if let Ok(raw) = logs::read_log(&path, &layout)
+        && let Ok(s) = logs::preprocess(&raw, &logs::PreprocessOptions::default())
     {
         for j in 0..s.n_joints() {
             let (mut q, mut qd, mut qdd) = ([0.0; 2], [0.0; 2], [0.0; 2]);
@@ -233,7 +233,7 @@ pub fn log_csv_target(dir: &Path, data: &[u8]) {
             }
         }
     }
-    if let Ok(t) = crate::nn::data::Table::read(&path) {
+    if let Ok(t) = compnet::data::Table::read(&path) {
         assert!(
             t.columns.iter().flatten().all(|v| v.is_finite()),
             "a non-finite table cell"
@@ -245,13 +245,13 @@ pub fn log_csv_target(dir: &Path, data: &[u8]) {
 pub fn model_json_target(dir: &Path, data: &[u8]) {
     let path = dir.join("model.json");
     std::fs::write(&path, data).expect("fuzz scratch folder");
-    let _ = crate::model_file::ModelFile::read(&path);
+    let _ = identify::model_file::ModelFile::read(&path);
 }
 
 /// Network safetensors: parse; a model that parses streams finite outputs on a few
 /// steps of bounded inputs.
 pub fn safetensors_target(data: &[u8]) {
-    if let Ok(m) = crate::nn::io::parse_model(data) {
+    if let Ok(m) = compnet::io::parse_model(data) {
         let inputs: Vec<Vec<f32>> = (0..3)
             .map(|k| (0..m.dims.input).map(|i| (k + i) as f32 * 0.1).collect())
             .collect();
@@ -269,7 +269,7 @@ pub fn safetensors_target(data: &[u8]) {
 pub fn excitation_json_target(dir: &Path, data: &[u8]) {
     let path = dir.join("exc.json");
     std::fs::write(&path, data).expect("fuzz scratch folder");
-    if let Ok(t) = crate::sim::trajectory::CommandedTrajectory::load(&path, 1) {
+    if let Ok(t) = plant_sim::trajectory::CommandedTrajectory::load(&path, 1) {
         let n = t.joint_count();
         let (mut q, mut qd, mut qdd) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
         let d = t.duration_s();
@@ -282,14 +282,14 @@ pub fn excitation_json_target(dir: &Path, data: &[u8]) {
             );
         }
     }
-    let _ = crate::excite::output::ExcitationFile::read(&path);
+    let _ = excitation::output::ExcitationFile::read(&path);
 }
 
 /// Flash budget TOML as `export --budgets` reads it (`dir/budgets.toml`).
 pub fn budget_toml_target(dir: &Path, data: &[u8]) {
     let path = dir.join("budgets.toml");
     std::fs::write(&path, data).expect("fuzz scratch folder");
-    let _ = crate::export::cli::flash_budget(&path);
+    let _ = fw_export::flash_budget(&path);
 }
 
 /// State-bus wire frames: the bytes through the firmware's frame receiver; every

@@ -1,19 +1,10 @@
-//! Host side of the joint feedforward: everything from robot description and logs
-//! to the fixed-size arrays the firmware compiles in.
-#![deny(unsafe_code)] // one exception: nn::gemm (a checked wrapper around sgemm)
+//! The `model-export` command line: one subcommand per pipeline stage, each parsing its
+//! options and running the stage libraries (`robot`, `excitation`, `plant-sim`, `logs`,
+//! `identify`, `compnet`, `fw-export`, `sil`). The only crate that parses arguments.
+#![deny(unsafe_code)]
 #![warn(missing_docs)]
 
-pub mod base;
+pub mod args;
 pub mod cli;
-pub mod demo;
-pub mod dynamics;
-pub mod excite;
-pub mod export;
+pub mod cmd;
 pub mod fuzz;
-pub mod identify;
-pub mod logs;
-pub mod model_file;
-pub mod nn;
-pub mod robot;
-pub mod sil;
-pub mod sim;

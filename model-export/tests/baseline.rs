@@ -1,10 +1,10 @@
 //! The friction-feature least-squares baseline: coefficient recovery on synthetic
 //! datasets (with and without the `qdd`, `rest_dir` and presliding columns), bad input, and the
 //! `evaluate --baseline-data` wiring.
+use compnet::baseline::{self, FEATURE_NAMES, N_FEATURES};
+use compnet::data::{FeatureSpec, Table};
+use compnet::{LstmModel, io};
 use firmware::lstm::LstmDims;
-use model_export::nn::baseline::{self, FEATURE_NAMES, N_FEATURES};
-use model_export::nn::data::{FeatureSpec, Table};
-use model_export::nn::{LstmModel, io};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};

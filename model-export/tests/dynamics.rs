@@ -1,15 +1,15 @@
 //! Proof for the dynamics core: regressor vs an independent spatial-vector
 //! (Featherstone) Newton-Euler, power balance, base parameter counts and grouping,
 //! f32 firmware model vs f64, and bad-input errors.
-use model_export::base::BaseParameters;
-use model_export::dynamics::{
-    bias_forces, firmware_model::build_firmware_model, forward_kinematics, full_joint_positions,
-    mass_matrix, regressor, rnea, stack_regressors,
-};
-use model_export::robot::{JointMode, ModelTerms, Robot, axis_rotation};
 use nalgebra::{DVector, Matrix3, Matrix6, Vector3, Vector6};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
+use robot::base::BaseParameters;
+use robot::dynamics::{
+    bias_forces, firmware_model::build_firmware_model, forward_kinematics, full_joint_positions,
+    mass_matrix, regressor, rnea, stack_regressors,
+};
+use robot::{JointMode, ModelTerms, Robot, axis_rotation};
 use std::path::PathBuf;
 
 /// A UR5e-like 6R arm in standard DH (test robot; masses and inertias invented).
@@ -117,7 +117,7 @@ fn ur10e() -> Option<Robot> {
 fn planar_2r() -> Robot {
     Robot::load(concat!(
         env!("CARGO_MANIFEST_DIR"),
-        "/robots/planar_2r.toml"
+        "/../robots/planar_2r.toml"
     ))
     .expect("example robot loads")
 }
@@ -702,7 +702,7 @@ fn extended_friction_basis_matches_its_definition_in_f64_and_f32() {
 // ---------------------------------------------------------------------------------
 // Bad input.
 
-fn expect_error(result: Result<Robot, model_export::robot::RobotError>, line: usize, field: &str) {
+fn expect_error(result: Result<Robot, robot::RobotError>, line: usize, field: &str) {
     let e = result.expect_err("must fail");
     let text = e.to_string();
     println!("{text}");
@@ -728,7 +728,7 @@ fn bad_toml_names_file_line_and_field() {
     );
     let good = std::fs::read_to_string(concat!(
         env!("CARGO_MANIFEST_DIR"),
-        "/robots/planar_2r.toml"
+        "/../robots/planar_2r.toml"
     ))
     .unwrap();
     let line_of = |text: &str, needle: &str, nth: usize| {

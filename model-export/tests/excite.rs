@@ -2,12 +2,12 @@
 //! exact start and end conditions, improvement over random feasible trajectories, infeasibility
 //! errors, output files.
 
-use model_export::excite::constraints::tightest;
-use model_export::excite::objective::condition_number;
-use model_export::excite::objective::observation_matrix;
-use model_export::excite::output::{ExcitationFile, OutputPaths, PlaybackLayout, write_outputs};
-use model_export::excite::toy::PendulumChain;
-use model_export::excite::{
+use excitation::constraints::tightest;
+use excitation::objective::condition_number;
+use excitation::objective::observation_matrix;
+use excitation::output::{ExcitationFile, OutputPaths, PlaybackLayout, write_outputs};
+use excitation::toy::PendulumChain;
+use excitation::{
     BaselineScaling, Derivative, ExcitationSettings, ExcitationTrajectory, FourierFamily,
     JointLimits, PointConstraint, design, random_feasible,
 };

@@ -1,19 +1,19 @@
 //! Excitation design on a real 6-DoF description: the paper's wrist case (joints 1-3 locked at
-//! zero, 4-6 moving) and all six joints. The robot is `model-export/robots/default.toml` when
+//! zero, 4-6 moving) and all six joints. The robot is `robots/default.toml` when
 //! present, else the UR10e URDF under `$DATASETS_DIR` (default `../shared/datasets` beside the
 //! workspace); the tests print a skip line and pass when neither exists.
 
-use model_export::excite::robot_model::{LimitOverrides, RobotObservation, joint_limits};
-use model_export::excite::{
+use excitation::robot_model::{LimitOverrides, RobotObservation, joint_limits};
+use excitation::{
     BaselineScaling, ExcitationDesign, ExcitationSettings, FourierFamily, JointLimits,
     PopulationStats, design, random_baseline, random_feasible,
 };
-use model_export::robot::Robot;
+use robot::Robot;
 use std::path::PathBuf;
 
 fn test_robot() -> Option<(Robot, LimitOverrides)> {
     let manifest = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
-    let default = manifest.join("robots/default.toml");
+    let default = manifest.join("../robots/default.toml");
     if default.exists() {
         return Some((
             Robot::load(&default).expect("default robot loads"),
@@ -41,7 +41,7 @@ fn test_robot() -> Option<(Robot, LimitOverrides)> {
 
 /// Every limit on a 2 kHz grid (20x the controller rate, twice the design's grid) and rest at
 /// both ends (q = 0, zero velocity and acceleration) within 1e-9.
-fn assert_admissible(tr: &model_export::excite::ExcitationTrajectory, lim: &[JointLimits]) {
+fn assert_admissible(tr: &excitation::ExcitationTrajectory, lim: &[JointLimits]) {
     let dense = tr.sample(2000.0, 1);
     let mut worst: f64 = 0.0;
     for k in 0..dense.t_s.len() {
@@ -208,12 +208,12 @@ fn six_joint_design_at_identification_limits_beats_random_by_a_large_factor() {
 /// 100 Hz, Gaussian noise 0.5 N·m per joint, seeded) and returns (values, std, true values).
 fn identify_along(
     model: &RobotObservation,
-    tr: &model_export::excite::ExcitationTrajectory,
+    tr: &excitation::ExcitationTrajectory,
     noise_nm: f64,
     seed: u64,
 ) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
-    use model_export::excite::ObservationModel;
-    use model_export::identify::{IdentifyOptions, NormalEquations, solve};
+    use excitation::ObservationModel;
+    use identify::{IdentifyOptions, NormalEquations, solve};
     use rand::SeedableRng;
     use rand_distr::{Distribution, Normal};
     let beta = model.base().beta(&model.robot().standard_parameters());
@@ -259,7 +259,7 @@ fn wrist_identification(
     overrides: &LimitOverrides,
     label: &str,
 ) -> (f64, f64, f64, f64, usize, usize) {
-    use model_export::excite::optimise::baseline_seed;
+    use excitation::optimise::baseline_seed;
     let model = RobotObservation::new(robot.default_paper_selection()).unwrap();
     let (_, family, d) = small_design(&model, overrides);
     let optimised = d.trajectory;
@@ -384,8 +384,7 @@ fn cli_writes_outputs_and_rejects_bad_input_without_partial_files() {
         stdout.contains("tightest:") && stdout.contains("condition number"),
         "{stdout}"
     );
-    let file =
-        model_export::excite::output::ExcitationFile::read(&dir.path().join("test.json")).unwrap();
+    let file = excitation::output::ExcitationFile::read(&dir.path().join("test.json")).unwrap();
     assert_eq!(file.layout.moving, vec![3, 4, 5]);
     let p = file.trajectory.eval(3.8);
     assert!(p.q_rad.iter().all(|q| q.abs() < 1e-9));

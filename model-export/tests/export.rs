@@ -1,12 +1,11 @@
 //! `model-export export`: the committed golden model files are what the exporter
 //! writes today (deterministic, in sync); quantised outputs track f32; bad input is
 //! refused with a clear error and leaves no file behind.
+use compnet::model::LstmModel;
 use firmware::features::DRIVE_INPUTS_PER_JOINT;
 use firmware::lstm::LstmDims;
-use model_export::export::{
-    self, ExportError, Exported, Placement, Precision, WeightsIn, cli::ExportArgs,
-};
-use model_export::nn::model::LstmModel;
+use fw_export::{ExportError, Exported, Placement, Precision, WeightsIn};
+use model_export::cmd::export::ExportArgs;
 use std::path::{Path, PathBuf};
 
 fn workspace() -> PathBuf {
@@ -45,8 +44,8 @@ fn regenerating_the_golden_models_gives_the_committed_files() {
     for p in Precision::ALL {
         let out = dir.path().join(format!("golden_{}.rs", p.name()));
         let a = args(out.clone(), p);
-        let m = export::cli::model(&a).expect("model");
-        export::cli::export(&m, &a).expect("export");
+        let m = model_export::cmd::export::model(&a).expect("model");
+        model_export::cmd::export::export(&m, &a).expect("export");
         let fresh = std::fs::read_to_string(&out).expect("read");
         let committed = workspace().join(format!("firmware/src/model/golden_{}.rs", p.name()));
         let committed = std::fs::read_to_string(&committed).expect("committed golden file");
@@ -62,9 +61,10 @@ fn regenerating_the_golden_models_gives_the_committed_files() {
 #[test]
 fn quantised_networks_track_the_f32_step_on_the_pytorch_fixture() {
     let fx = workspace().join("model-export/tests/fixtures/torch_lstm.safetensors");
-    let m = model_export::nn::io::read_model(&fx).expect("fixture");
-    let inputs = export::golden_inputs(m.dims.input, 400);
-    let table = export::accuracy_markdown(&export::accuracy(&m, &inputs, None).expect("accuracy"));
+    let m = compnet::io::read_model(&fx).expect("fixture");
+    let inputs = fw_export::golden_inputs(m.dims.input, 400);
+    let table =
+        fw_export::accuracy_markdown(&fw_export::accuracy(&m, &inputs, None).expect("accuracy"));
     println!("{table}");
     let reference = m.stream(&inputs).expect("f32");
     // RMS of the difference to the f32 firmware step, per output, over 400 steps.
@@ -122,8 +122,8 @@ fn the_pytorch_fixtures_export_within_each_precisions_bound() {
 
 fn exported_forms_match_pytorch(name: &str, reference: &str) {
     let fixtures = workspace().join("model-export/tests/fixtures");
-    let m = model_export::nn::io::read_model(&fixtures.join(name)).expect("fixture");
-    let t = model_export::nn::data::Table::read(&fixtures.join(reference)).expect("reference");
+    let m = compnet::io::read_model(&fixtures.join(name)).expect("fixture");
+    let t = compnet::data::Table::read(&fixtures.join(reference)).expect("reference");
     let col = |n: String| t.column(&n).expect("column").to_vec();
     let xs: Vec<Vec<f32>> = (0..m.dims.input).map(|k| col(format!("x{k}"))).collect();
     let ys: Vec<Vec<f32>> = (0..m.dims.output).map(|k| col(format!("y{k}"))).collect();
@@ -160,8 +160,8 @@ fn regenerating_the_linear_input_golden_models_gives_the_committed_files() {
         a.model = Some(workspace().join("model-export/tests/fixtures/torch_linear.safetensors"));
         a.joints = vec![1, 2];
         a.allow_worse = true;
-        let m = export::cli::model(&a).expect("model");
-        export::cli::export(&m, &a).expect("export");
+        let m = model_export::cmd::export::model(&a).expect("model");
+        model_export::cmd::export::export(&m, &a).expect("export");
         let fresh = std::fs::read_to_string(&out).expect("read");
         let committed =
             workspace().join(format!("firmware/src/model/golden_linear_{}.rs", p.name()));
@@ -232,8 +232,8 @@ fn joint_numbers_start_at_one() {
     let out = dir.path().join("model.rs");
     let mut a = args(out.clone(), Precision::F32);
     a.joints = vec![0, 1, 2];
-    let err = export::cli::model(&a)
-        .and_then(|m| export::cli::export(&m, &a))
+    let err = model_export::cmd::export::model(&a)
+        .and_then(|m| model_export::cmd::export::export(&m, &a))
         .unwrap_err();
     assert!(format!("{err:#}").contains("start at 1"), "{err:#}");
     assert!(!out.exists());
@@ -247,22 +247,25 @@ fn an_increment_network_is_refused_and_writes_nothing() {
     a.dims = vec![3, 4, 4, 1];
     let mut m = small();
     m.preset = "paper".into();
-    let spec = model_export::nn::data::FeatureSpec::paper_increment(&[4]);
+    let spec = compnet::data::FeatureSpec::paper_increment(&[4]);
     m.input_names = spec.inputs.clone();
     m.output_names = spec.output_names();
-    let err = export::cli::export(&m, &a).unwrap_err();
+    let err = model_export::cmd::export::export(&m, &a).unwrap_err();
     let text = format!("{err:#}");
     assert!(text.contains("tau_meas_j4@+1-tau_meas_j4@0"), "{text}");
     assert!(text.contains("--paper-output next"), "{text}");
     assert!(!out.exists(), "a refused export left {}", out.display());
     // So is the form relative to the model torque.
-    m.output_names = model_export::nn::data::FeatureSpec::paper_relative(&[4]).output_names();
-    let text = format!("{:#}", export::cli::export(&m, &a).unwrap_err());
+    m.output_names = compnet::data::FeatureSpec::paper_relative(&[4]).output_names();
+    let text = format!(
+        "{:#}",
+        model_export::cmd::export::export(&m, &a).unwrap_err()
+    );
     assert!(text.contains("tau_meas_j4-tau_model_j4@+1"), "{text}");
     assert!(!out.exists(), "a refused export left {}", out.display());
     // The same network with the next-step output exports.
-    m.output_names = model_export::nn::data::FeatureSpec::paper(&[4]).output_names();
-    export::cli::export(&m, &a).expect("next-step paper network exports");
+    m.output_names = compnet::data::FeatureSpec::paper(&[4]).output_names();
+    model_export::cmd::export::export(&m, &a).expect("next-step paper network exports");
     assert!(out.exists());
 }
 
@@ -279,14 +282,14 @@ fn a_model_over_the_flash_budget_is_refused_and_writes_nothing() {
     let mut a = args(out.clone(), Precision::Int16);
     a.dims = vec![9, 64, 64, 3];
     a.budgets = Some(budgets);
-    let m = export::cli::model(&a).expect("model");
-    let err = export::cli::export(&m, &a).unwrap_err();
+    let m = model_export::cmd::export::model(&a).expect("model");
+    let err = model_export::cmd::export::export(&m, &a).unwrap_err();
     let text = format!("{err:#}");
     assert!(text.contains("over the budget of 4096 bytes"), "{text}");
     assert!(!out.exists(), "a refused export left {}", out.display());
     // The checked-in budget accepts it.
     a.budgets = Some(workspace().join("host-tests/budgets.toml"));
-    export::cli::export(&m, &a).expect("fits the board budget");
+    model_export::cmd::export::export(&m, &a).expect("fits the board budget");
     assert!(out.exists());
 }
 
@@ -302,7 +305,7 @@ fn gate_case(dir: &Path) -> (LstmModel, PathBuf) {
         },
         9,
     );
-    let spec = model_export::nn::data::FeatureSpec::drive(&[4]);
+    let spec = compnet::data::FeatureSpec::drive(&[4]);
     m.preset = "drive".into();
     m.input_names = spec.inputs.clone();
     m.output_names = spec.output_names();
@@ -338,18 +341,24 @@ fn the_do_no_harm_gate_refuses_a_network_worse_than_the_model() {
     a.joints = vec![4];
     a.model = Some(dir.path().join("trained.safetensors"));
     // A trained network needs validation runs (or --allow-worse).
-    let text = format!("{:#}", export::cli::export(&m, &a).unwrap_err());
+    let text = format!(
+        "{:#}",
+        model_export::cmd::export::export(&m, &a).unwrap_err()
+    );
     assert!(text.contains("--gate-data"), "{text}");
     assert!(!out.exists());
     // A seeded network corrects an exact model: worse, refused, nothing written.
     a.gate_data = vec![run.clone()];
-    let text = format!("{:#}", export::cli::export(&m, &a).unwrap_err());
+    let text = format!(
+        "{:#}",
+        model_export::cmd::export::export(&m, &a).unwrap_err()
+    );
     assert!(text.contains("worse than the model alone"), "{text}");
     assert!(text.contains("1 | 4 | 0.0000 |"), "{text}");
     assert!(!out.exists(), "a refused export left {}", out.display());
     // --allow-worse exports it with the figures as a warning in the file.
     a.allow_worse = true;
-    export::cli::export(&m, &a).expect("--allow-worse exports");
+    model_export::cmd::export::export(&m, &a).expect("--allow-worse exports");
     let text = std::fs::read_to_string(&out).unwrap();
     assert!(
         text.starts_with("// WARNING: exported with --allow-worse"),
@@ -365,7 +374,7 @@ fn the_do_no_harm_gate_refuses_a_network_worse_than_the_model() {
     m.w_out.iter_mut().for_each(|w| *w = 0.0);
     m.b_out.iter_mut().for_each(|b| *b = 0.0);
     m.output_mean.iter_mut().for_each(|b| *b = 0.0);
-    export::cli::export(&m, &a).expect("a network that does no harm exports");
+    model_export::cmd::export::export(&m, &a).expect("a network that does no harm exports");
     assert!(!std::fs::read_to_string(&out).unwrap().contains("WARNING"));
 }
 
@@ -379,7 +388,7 @@ fn model_metadata_never_reaches_the_generated_code_as_text() {
     m.preset = "paper\npub static EVIL: u8 = 1; //".into();
     m.input_names = vec!["a\"b".into(), "c\n#[x]".into(), "d".into()];
     m.output_names = vec!["y\\\"".into()];
-    export::cli::export(&m, &a).expect("exports as a custom network");
+    model_export::cmd::export::export(&m, &a).expect("exports as a custom network");
     let text = std::fs::read_to_string(&out).unwrap();
     assert!(!text.contains("EVIL"), "metadata pasted into the file");
     assert!(!text.contains("\n#[x]"), "a name broke out of its literal");
@@ -402,8 +411,8 @@ fn auto_places_a_model_in_sram_when_it_fits_the_board_budget_and_in_flash_otherw
     // (135 800 B) does not, its linear stage does.
     let mut a = args(out.clone(), Precision::Int16);
     a.dims = vec![9, 64, 64, 3];
-    let m = export::cli::model(&a).expect("model");
-    let (_, p) = export::cli::export(&m, &a).expect("export");
+    let m = model_export::cmd::export::model(&a).expect("model");
+    let (_, p) = model_export::cmd::export::export(&m, &a).expect("export");
     assert_eq!(p.sram_budget_bytes, Some(73_728));
     assert_eq!(
         (p.network, p.linear_stage),
@@ -417,13 +426,13 @@ fn auto_places_a_model_in_sram_when_it_fits_the_board_budget_and_in_flash_otherw
         "{}",
         text.lines().nth(2).unwrap_or("")
     );
-    assert_eq!(text.matches(export::SRAM_SECTION_ATTRIBUTE).count(), 2);
+    assert_eq!(text.matches(fw_export::SRAM_SECTION_ATTRIBUTE).count(), 2);
     assert!(text.contains(&format!(
         "{}\npub static NETWORK",
-        export::SRAM_SECTION_ATTRIBUTE
+        fw_export::SRAM_SECTION_ATTRIBUTE
     )));
     a.precision = Precision::F32;
-    let (_, p) = export::cli::export(&m, &a).expect("export");
+    let (_, p) = model_export::cmd::export::export(&m, &a).expect("export");
     assert_eq!(
         (p.network, p.linear_stage),
         (Placement::Flash, Placement::Sram)
@@ -431,16 +440,19 @@ fn auto_places_a_model_in_sram_when_it_fits_the_board_budget_and_in_flash_otherw
     let text = std::fs::read_to_string(&out).expect("read");
     assert!(!text.contains(&format!(
         "{}\npub static NETWORK",
-        export::SRAM_SECTION_ATTRIBUTE
+        fw_export::SRAM_SECTION_ATTRIBUTE
     )));
     // Forced to flash: no attribute at all.
     a.weights_in = WeightsIn::Flash;
-    export::cli::export(&m, &a).expect("export");
+    model_export::cmd::export::export(&m, &a).expect("export");
     let text = std::fs::read_to_string(&out).expect("read");
     assert!(!text.contains("link_section"));
     // Forced to SRAM over the budget: an error naming both sizes, the file untouched.
     a.weights_in = WeightsIn::Sram;
-    let err = format!("{:#}", export::cli::export(&m, &a).unwrap_err());
+    let err = format!(
+        "{:#}",
+        model_export::cmd::export::export(&m, &a).unwrap_err()
+    );
     assert!(err.contains("over the SRAM budget of 73728 bytes"), "{err}");
     assert_eq!(std::fs::read_to_string(&out).expect("read"), text);
 }
@@ -464,8 +476,11 @@ fn a_broken_memory_layout_is_refused_naming_file_line_and_field() {
     let out = dir.path().join("model.rs");
     let mut a = args(out.clone(), Precision::Int16);
     a.budgets = Some(budgets.clone());
-    let m = export::cli::model(&a).expect("model");
-    let err = format!("{:#}", export::cli::export(&m, &a).unwrap_err());
+    let m = model_export::cmd::export::model(&a).expect("model");
+    let err = format!(
+        "{:#}",
+        model_export::cmd::export::export(&m, &a).unwrap_err()
+    );
     assert!(
         err.contains("memory.x") && err.contains("line 4") && err.contains("LENGTH"),
         "{err}"
@@ -483,19 +498,22 @@ fn a_broken_memory_layout_is_refused_naming_file_line_and_field() {
          ram_bytes = 98304\nstack_reserve_bytes = 16384\n",
     )
     .expect("write");
-    let err = format!("{:#}", export::cli::export(&m, &a).unwrap_err());
+    let err = format!(
+        "{:#}",
+        model_export::cmd::export::export(&m, &a).unwrap_err()
+    );
     assert!(err.contains("binary.board.firmware_ram_bytes"), "{err}");
     assert!(!out.exists());
     // Sizes in hex and K/M, comments ignored.
     assert_eq!(
-        export::layout_ram_bytes(
+        fw_export::layout_ram_bytes(
             "/* RAM : LENGTH = 1 */\n  RAM : ORIGIN = 0x20000000, LENGTH = 0x18000\n"
         ),
         Ok(0x18000)
     );
     assert_eq!(
-        export::layout_ram_bytes("RAM : ORIGIN = 0x20000000, LENGTH = 4M"),
+        fw_export::layout_ram_bytes("RAM : ORIGIN = 0x20000000, LENGTH = 4M"),
         Ok(4 << 20)
     );
-    assert!(export::layout_ram_bytes("FLASH : ORIGIN = 0, LENGTH = 4M").is_err());
+    assert!(fw_export::layout_ram_bytes("FLASH : ORIGIN = 0, LENGTH = 4M").is_err());
 }

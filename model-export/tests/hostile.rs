@@ -45,7 +45,7 @@ fn train_args(dir: &Path) -> (Vec<String>, std::path::PathBuf, std::path::PathBu
 
 fn robot() -> String {
     Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("robots/default.toml")
+        .join("../robots/default.toml")
         .display()
         .to_string()
 }
@@ -211,8 +211,8 @@ fn joint_limits_above_pi_do_not_panic_the_base_parameters() {
     assert!(text.contains("q_min = 3.3") && text.contains("q_min = 3.5"));
     let path = dir.path().join("r.toml");
     std::fs::write(&path, text).unwrap();
-    let robot = model_export::robot::Robot::load(&path).unwrap();
-    let base = model_export::base::BaseParameters::compute(&robot, 1);
+    let robot = robot::Robot::load(&path).unwrap();
+    let base = robot::base::BaseParameters::compute(&robot, 1);
     assert!(base.is_ok(), "{:?}", base.err());
 }
 
@@ -405,7 +405,7 @@ fn joint_limits_that_are_equal_are_an_error_naming_line_and_field() {
     assert!(text.contains("q_min = 1.0\nq_max = 1.0"));
     let path = dir.path().join("r.toml");
     std::fs::write(&path, text).unwrap();
-    let e = model_export::robot::Robot::load(&path).expect_err("lower = upper");
+    let e = robot::Robot::load(&path).expect_err("lower = upper");
     assert_eq!(
         (e.line, e.field.as_str()),
         (Some(23), "joint[0].q_max"),
@@ -430,7 +430,7 @@ fn identified_wrist(dir: &Path) -> (String, String, Vec<String>) {
         &log,
     ])
     .unwrap();
-    let reader = model_export::sim::log::SimulatedLog::reader_args(6);
+    let reader = plant_sim::log::SimulatedLog::reader_args(6);
     let mut args = vec![
         "identify",
         "--robot",

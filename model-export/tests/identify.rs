@@ -3,32 +3,30 @@
 //! `model-export identify` binary; bad inputs through the binary.
 #![allow(clippy::needless_range_loop)]
 
-use model_export::base::BaseParameters;
-use model_export::identify::commands::{
-    BASE_SEED, FirmwareModel, JointArgs, RobotBaseModel, load_robot,
-};
-use model_export::identify::pipeline::{self, LinearModel};
-use model_export::identify::{IdentifyOptions, Weighting, solve};
-use model_export::logs::Samples;
-use model_export::model_file::ModelFile;
+use identify::identified::{BASE_SEED, ModelSelection, RobotBaseModel, load_robot, predict_log};
+use identify::model_file::ModelFile;
+use identify::pipeline::{self, LinearModel};
+use identify::{IdentifyOptions, Weighting, solve};
+use logs::Samples;
 use nalgebra::DVector;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
+use robot::RobotSource;
+use robot::base::BaseParameters;
+use robot::dynamics::firmware_model::FirmwareModel;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
 const ROBOT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/ur_type_6r.toml");
 
 fn robot_model() -> RobotBaseModel {
-    let joints = JointArgs {
-        lock: vec![],
-        friction_offset: false,
-        coulomb_smoothing_rad_s: None,
-        friction_model: model_export::identify::commands::FrictionModel::Paper,
-        chain: Default::default(),
-    };
-    RobotBaseModel::new(load_robot(Path::new(ROBOT), &joints).unwrap()).unwrap()
+    RobotBaseModel::new(
+        load_robot(&RobotSource::File(ROBOT.into()), &ModelSelection::default())
+            .unwrap()
+            .robot,
+    )
+    .unwrap()
 }
 
 /// A Fourier excitation (5 harmonics, 10 s period) sampled at `t`.
@@ -163,7 +161,7 @@ fn firmware_f32_model_matches_f64_regressor_with_identified_parameters() {
     let theta = m.equivalent_standard(&true_beta(&m));
     let fw = FirmwareModel::build(&m.robot, &theta).unwrap();
     let joints = m.modelled_log_joints();
-    let p32 = fw.predict(&joints, &s);
+    let p32 = predict_log(&fw, &joints, &s);
     let p64 = pipeline::predict(&m, &true_beta(&m), &s);
     let scale = p64.iter().flatten().fold(0.0f64, |a, v| a.max(v.abs()));
     let diff = pipeline::max_abs_difference(&p32, &p64);
@@ -253,7 +251,7 @@ fn cli_identify_recovers_parameters_and_torque_evaluates_them() {
     }
     assert_eq!(
         file.identification_logs[0].sha256,
-        model_export::logs::sha256_file(&log).unwrap()
+        logs::sha256_file(&log).unwrap()
     );
     assert_eq!(file.friction.len(), 6);
     assert!((file.friction[3].viscous_nm_s_rad.unwrap() - 1.5).abs() < 1e-6);

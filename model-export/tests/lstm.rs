@@ -1,11 +1,11 @@
 //! The LSTM compensation network: firmware step vs candle graph, PyTorch interchange,
 //! reset semantics, bad input, and learning a synthetic system with memory.
 use candle_core::Device;
+use compnet::data::{FeatureSpec, Sequence, Table};
+use compnet::model::normalised_sequence;
+use compnet::train::{TrainConfig, new_model, train};
+use compnet::{LstmModel, Net, eval, io};
 use firmware::lstm::{InputActivation, LstmDims};
-use model_export::nn::data::{FeatureSpec, Sequence, Table};
-use model_export::nn::model::normalised_sequence;
-use model_export::nn::train::{TrainConfig, new_model, train};
-use model_export::nn::{LstmModel, Net, eval, io};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -111,8 +111,7 @@ fn a_pytorch_model_imports_and_matches_its_reference() {
             output: 2
         }
     );
-    let err =
-        model_export::cli::check_reference(&m, &fixtures().join("torch_reference.csv")).unwrap();
+    let err = compnet::io::check_reference(&m, &fixtures().join("torch_reference.csv")).unwrap();
     println!("firmware f32 step vs PyTorch reference: max error {err:.2e} of the output RMS");
     assert!(err < 1e-5, "{err}");
     // Round trip through our writer is lossless.
@@ -132,8 +131,7 @@ fn a_pytorch_model_with_a_linear_input_layer_imports_and_matches_its_reference()
     let m = io::read_model(&path).unwrap();
     assert_eq!(m.input_activation, InputActivation::Linear);
     let err =
-        model_export::cli::check_reference(&m, &fixtures().join("torch_linear_reference.csv"))
-            .unwrap();
+        compnet::io::check_reference(&m, &fixtures().join("torch_linear_reference.csv")).unwrap();
     println!(
         "linear input layer: firmware f32 step vs PyTorch: max error {err:.2e} of the output RMS"
     );
@@ -141,11 +139,9 @@ fn a_pytorch_model_with_a_linear_input_layer_imports_and_matches_its_reference()
     // Run as tanh, the same weights are far off: the activation is what was imported.
     let mut as_tanh = m.clone();
     as_tanh.input_activation = InputActivation::Tanh;
-    let wrong = model_export::cli::check_reference(
-        &as_tanh,
-        &fixtures().join("torch_linear_reference.csv"),
-    )
-    .unwrap();
+    let wrong =
+        compnet::io::check_reference(&as_tanh, &fixtures().join("torch_linear_reference.csv"))
+            .unwrap();
     println!("the same weights run with tanh: max error {wrong:.2e} of the output RMS");
     assert!(wrong > 1e-2, "{wrong}");
     // Our writer keeps the activation; the caller's word must agree with the metadata.
@@ -293,7 +289,7 @@ fn training_learns_a_system_with_memory() {
     let (m, h) = train(&init, &[&tr], &[&va], &cfg).unwrap();
     let before = eval::evaluate(&init, &te).unwrap()[0].rms_after;
     let after = eval::evaluate(&m, &te).unwrap()[0].rms_after;
-    let std = model_export::nn::data::mean_std(&te.targets).1[0] as f64;
+    let std = compnet::data::mean_std(&te.targets).1[0] as f64;
     println!(
         "val loss {:.4} -> {:.4}; streamed test RMS {before:.4} -> {after:.4} (target std {std:.4})",
         h.val[0], h.val[h.best_epoch]
@@ -356,7 +352,7 @@ fn presets_align_inputs_and_targets() {
     let inc = FeatureSpec::paper_increment(&[4]);
     assert_eq!(inc.inputs, FeatureSpec::paper(&[4]).inputs);
     assert_eq!(inc.output_names(), ["tau_meas_j4@+1-tau_meas_j4@0"]);
-    use model_export::nn::data::is_shifted_difference_name as loop_closing;
+    use compnet::data::is_shifted_difference_name as loop_closing;
     assert!(loop_closing(&inc.output_names()[0]));
     for spec in [
         FeatureSpec::paper(&[4]),
@@ -388,10 +384,10 @@ fn presets_align_inputs_and_targets() {
 /// refused.
 #[test]
 fn drive_linear_stage_is_fitted_stored_and_streamed() {
+    use compnet::{io, train};
     use firmware::features::{
         DRIVE_INPUTS_PER_JOINT as PER_JOINT, FRICTION_FEATURES, friction_features,
     };
-    use model_export::nn::{io, train};
     let joints = [4, 5];
     let spec = FeatureSpec::drive(&joints);
     let truth: Vec<f32> = (0..2 * FRICTION_FEATURES)

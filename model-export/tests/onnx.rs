@@ -3,8 +3,9 @@
 //! safetensors file, the firmware step matches PyTorch's outputs to 1e-6, and graphs
 //! outside the supported pattern are refused naming the node.
 use clap::Parser;
-use model_export::cli::{Cli, check_reference, run};
-use model_export::nn::{io, onnx};
+use compnet::io::check_reference;
+use compnet::{io, onnx};
+use model_export::cli::{Cli, run};
 use onnx_protobuf::{Message, ModelProto};
 use std::path::{Path, PathBuf};
 

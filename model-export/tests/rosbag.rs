@@ -3,8 +3,8 @@
 //! and evaluates exactly like the same samples as CSV, and hostile bags are refused with
 //! the file, topic and field named, nothing written.
 use byteorder::LittleEndian;
+use logs::{BagOptions, LogLayout, read_log, read_robot_log, rosbag};
 use model_export::cli::run_args as cli;
-use model_export::logs::{BagOptions, LogLayout, read_log, read_robot_log, rosbag};
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::io::Cursor;
@@ -18,7 +18,7 @@ fn fixture(name: &str) -> PathBuf {
 
 fn robot() -> String {
     Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("robots/default.toml")
+        .join("../robots/default.toml")
         .display()
         .to_string()
 }

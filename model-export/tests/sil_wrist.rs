@@ -2,19 +2,17 @@
 //! drive + compensator per joint, states over the simulated bus): short runs that
 //! check the wiring; the full table is `model-export sil` (README, "Wrist SIL").
 
+use compnet::model::LstmModel;
 use firmware::control::FaultFlags;
 use firmware::lstm::LstmDims;
 use model_export::cli::run_args as cli;
-use model_export::nn::model::LstmModel;
-use model_export::sil::wrist::{WRIST_JOINTS, WristFeedforward, WristLstm, WristSetup, run_wrist};
-use model_export::sim::{CommandedTrajectory, PlantParameters};
+use plant_sim::{CommandedTrajectory, PlantParameters};
+use sil::wrist::{WRIST_JOINTS, WristFeedforward, WristLstm, WristSetup, run_wrist};
 
 fn setup(seconds: f64) -> WristSetup {
-    let robot =
-        model_export::sim::load_robot(std::path::Path::new(model_export::sim::cli::DEFAULT_ROBOT))
-            .unwrap();
+    let robot = robot::RobotSource::BuiltIn.load().unwrap();
     let traj: CommandedTrajectory =
-        model_export::sim::cli::trajectory_or_seeded(&None, 1, 2, 3).unwrap();
+        plant_sim::trajectory::trajectory_or_seeded(None, 1, 2, 3).unwrap();
     let mut s = WristSetup::new(robot, PlantParameters::default_robot(), traj, 100.0, 3).unwrap();
     s.duration_s = seconds;
     s
@@ -22,20 +20,21 @@ fn setup(seconds: f64) -> WristSetup {
 
 /// The nominal model of the wrist (joints 1-3 locked at 0) as the firmware builds it.
 fn nominal_model() -> firmware::dynamics::RigidBodyModel<3> {
-    let (robot, theta) = model_export::identify::commands::load_model_robot(
-        std::path::Path::new(model_export::sim::cli::DEFAULT_ROBOT),
+    let identify::identified::IdentifiedRobot {
+        robot,
+        standard_parameters: theta,
+        ..
+    } = identify::identified::load_model_robot(
+        &robot::RobotSource::BuiltIn,
         None,
-        &model_export::identify::commands::JointArgs {
-            lock: vec!["1=0".into(), "2=0".into(), "3=0".into()],
-            friction_offset: false,
-            coulomb_smoothing_rad_s: None,
-            friction_model: model_export::identify::commands::FrictionModel::Paper,
-            chain: Default::default(),
+        &identify::identified::ModelSelection {
+            locked: vec![(0, 0.0), (1, 0.0), (2, 0.0)],
+            ..Default::default()
         },
     )
     .unwrap();
     assert_eq!(robot.modelled_joints(), WRIST_JOINTS.to_vec());
-    model_export::dynamics::firmware_model::build_firmware_model::<3>(&robot, &theta).unwrap()
+    robot::dynamics::firmware_model::build_firmware_model::<3>(&robot, &theta).unwrap()
 }
 
 /// A paper-preset network of the wrist whose output is always 0 N*m (zero output
@@ -50,7 +49,7 @@ fn zero_output_lstm() -> WristLstm {
         },
         5,
     );
-    let spec = model_export::nn::data::FeatureSpec::paper(&[4, 5, 6]);
+    let spec = compnet::data::FeatureSpec::paper(&[4, 5, 6]);
     m.preset = spec.preset.clone();
     m.output_names = spec.output_names();
     m.input_names = spec.inputs;
@@ -59,7 +58,7 @@ fn zero_output_lstm() -> WristLstm {
     m.output_mean.iter_mut().for_each(|b| *b = 0.0);
     let dir = tempfile::tempdir().unwrap();
     let p = dir.path().join("zero.safetensors");
-    model_export::nn::io::write_model(&m, &p).unwrap();
+    compnet::io::write_model(&m, &p).unwrap();
     WristLstm::load(dir.path()).unwrap()
 }
 
@@ -125,7 +124,7 @@ fn cli_simulate_identify_sil_writes_markdown_and_json() {
         &log,
     ])
     .unwrap();
-    let layout = model_export::sim::SimulatedLog::reader_args(6);
+    let layout = plant_sim::SimulatedLog::reader_args(6);
     let layout: Vec<&str> = layout.iter().map(String::as_str).collect();
     let mut id = vec![
         "identify",

@@ -1,11 +1,11 @@
 //! The default robot and the plant simulator: what the simulated logs must show.
-use model_export::excite::ExcitationTrajectory;
-use model_export::robot::Robot;
-use model_export::sim::{
+use excitation::ExcitationTrajectory;
+use plant_sim::{
     self, CommandedTrajectory, PlantEffects, PlantParameters, RigidBodyModel, RobotRigidBody,
     SimulationConfig,
 };
 use rand::{Rng, SeedableRng};
+use robot::Robot;
 use std::path::Path;
 
 fn robots_dir() -> &'static Path {
@@ -13,13 +13,13 @@ fn robots_dir() -> &'static Path {
 }
 
 /// default.toml and default.urdf describe the same arm: equal inverse dynamics at random
-/// states, and both equal an independent standard-DH Newton-Euler (sim::DhArm) built
+/// states, and both equal an independent standard-DH Newton-Euler (plant_sim::DhArm) built
 /// from the published UR5e numbers.
 #[test]
 fn toml_and_urdf_give_the_same_dynamics() {
     let toml = RobotRigidBody::new(&Robot::load(robots_dir().join("default.toml")).unwrap());
     let urdf = RobotRigidBody::new(&Robot::load(robots_dir().join("default.urdf")).unwrap());
-    let independent = sim::default_arm();
+    let independent = plant_sim::default_arm();
     assert_eq!(toml.dof(), 6);
     assert_eq!(urdf.dof(), 6);
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
@@ -97,8 +97,13 @@ fn plant_file_agrees_with_robot_file() {
 fn run(seed: u64) -> Vec<u8> {
     let robot = Robot::load(robots_dir().join("default.toml")).unwrap();
     let arm = RobotRigidBody::new(&robot);
-    let series =
-        ExcitationTrajectory::seeded_rest_to_rest(5, &[0.0; 6], 5, 10.0, sim::cli::DEMO_LIMITS);
+    let series = ExcitationTrajectory::seeded_rest_to_rest(
+        5,
+        &[0.0; 6],
+        5,
+        10.0,
+        plant_sim::trajectory::DEMO_LIMITS,
+    );
     let tr = CommandedTrajectory::Fourier { series, periods: 1 };
     let mut cfg = SimulationConfig::new(6, 6);
     cfg.effects = PlantEffects {
@@ -106,7 +111,7 @@ fn run(seed: u64) -> Vec<u8> {
         ..PlantEffects::all()
     };
     cfg.seed = seed;
-    let log = sim::simulate(&arm, &PlantParameters::default_robot(), &tr, &cfg).unwrap();
+    let log = plant_sim::simulate(&arm, &PlantParameters::default_robot(), &tr, &cfg).unwrap();
     let mut bytes = Vec::new();
     log.write_csv(&mut bytes).unwrap();
     bytes
@@ -171,20 +176,25 @@ fn cli_simulate_writes_log_and_rejects_bad_input() {
 fn simulated_log_reads_like_a_real_robot_log() {
     let robot = Robot::load(robots_dir().join("default.toml")).unwrap();
     let arm = RobotRigidBody::new(&robot);
-    let series =
-        ExcitationTrajectory::seeded_rest_to_rest(9, &[0.0; 3], 5, 10.0, sim::cli::DEMO_LIMITS);
+    let series = ExcitationTrajectory::seeded_rest_to_rest(
+        9,
+        &[0.0; 3],
+        5,
+        10.0,
+        plant_sim::trajectory::DEMO_LIMITS,
+    );
     let tr = CommandedTrajectory::Fourier { series, periods: 1 };
     let mut cfg = SimulationConfig::new(6, 3);
     cfg.driven_joints = vec![3, 4, 5];
     let plant = PlantParameters::default_robot();
-    let log = sim::simulate(&arm, &plant, &tr, &cfg).unwrap();
+    let log = plant_sim::simulate(&arm, &plant, &tr, &cfg).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("sim.csv");
     log.save(&path).unwrap();
     let gains: Vec<f64> = plant.joints.iter().map(|d| d.drive_gain_nm_a()).collect();
-    let mut layout = model_export::logs::LogLayout::sequential(6, true, true, Some(gains));
+    let mut layout = logs::LogLayout::sequential(6, true, true, Some(gains));
     layout.header = Some(true);
-    let raw = model_export::logs::read_log(&path, &layout).unwrap();
+    let raw = logs::read_log(&path, &layout).unwrap();
     assert_eq!(raw.time_s.len(), log.rows.len());
     let tau = raw.torque_nm.unwrap();
     let k = 437;
@@ -200,8 +210,13 @@ fn simulated_log_reads_like_a_real_robot_log() {
 #[test]
 fn excitation_file_layout_selects_the_driven_joints() {
     let dir = tempfile::tempdir().unwrap();
-    let series =
-        ExcitationTrajectory::seeded_rest_to_rest(4, &[0.0; 3], 5, 10.0, sim::cli::DEMO_LIMITS);
+    let series = ExcitationTrajectory::seeded_rest_to_rest(
+        4,
+        &[0.0; 3],
+        5,
+        10.0,
+        plant_sim::trajectory::DEMO_LIMITS,
+    );
     let file = serde_json::json!({
         "format": "excitation", "version": 1,
         "layout": { "joint_names": ["a", "b", "c", "d", "e", "f"], "moving": [3, 4, 5],

@@ -4,7 +4,7 @@
 //! Data: `$DATASETS_DIR/ur10e` (default `<workspace>/../shared/datasets/ur10e`). Where
 //! it is absent the test prints a skip line and passes.
 
-use model_export::model_file::ModelFile;
+use identify::model_file::ModelFile;
 use std::path::PathBuf;
 use std::process::Command;
 

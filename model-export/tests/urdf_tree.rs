@@ -2,9 +2,9 @@
 //! checked against Pinocchio's RNEA on public arms with grippers (fixture written by
 //! `scripts/make_pinocchio_fixture.py`), and the hostile trees (loops, doubled joints,
 //! several roots, size limits) refused by name.
-use model_export::dynamics::firmware_model::FirmwareModel;
-use model_export::dynamics::rnea;
-use model_export::robot::{ChainSelection, MAX_URDF_JOINTS, ModelTerms, Robot};
+use robot::dynamics::firmware_model::FirmwareModel;
+use robot::dynamics::rnea;
+use robot::{ChainSelection, MAX_URDF_JOINTS, ModelTerms, Robot};
 use std::path::{Path, PathBuf};
 
 fn fixture_dir() -> PathBuf {

@@ -1,8 +1,8 @@
 //! Runs the top README's "A URDF with a gripper" walkthrough as written: the commands of
 //! its marked block, with a log made from the excitation and the nominal model (the
 //! rigid-body torques of the chain) where the robot's run would be.
-use model_export::dynamics::rnea;
-use model_export::robot::{ChainSelection, Robot};
+use robot::dynamics::rnea;
+use robot::{ChainSelection, Robot};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 

@@ -1,0 +1,284 @@
+//! The paper's evaluation, streaming the FIRMWARE f32 step over whole sequences.
+use super::baseline::LinearBaseline;
+use super::data::{FeatureSpec, Sequence, Table};
+use super::model::LstmModel;
+use anyhow::{Result, bail};
+use serde::Serialize;
+
+/// Figures for one output (one joint).
+#[derive(Clone, Debug, Serialize)]
+pub struct TargetEval {
+    /// Output name.
+    pub name: String,
+    /// RMS error of the identified model alone (raw units, e.g. N·m).
+    pub rms_before: f64,
+    /// RMS error after compensation (the network's prediction).
+    pub rms_after: f64,
+    /// `100 · (1 - after / before)`.
+    pub reduction_pct: f64,
+    /// RMS error of the persistence baseline (`paper` preset: τ(t+1) = τ(t)).
+    pub rms_persistence: Option<f64>,
+}
+
+impl TargetEval {
+    /// Every number of the row (checked finite before a report is written).
+    pub fn figures(&self) -> impl Iterator<Item = f64> + '_ {
+        [self.rms_before, self.rms_after, self.reduction_pct]
+            .into_iter()
+            .chain(self.rms_persistence)
+    }
+}
+
+/// Streams `m` from the zero state over `seq` and compares with the baselines.
+#[allow(clippy::needless_range_loop)] // three parallel per-step tables indexed alike
+pub fn evaluate(m: &LstmModel, seq: &Sequence) -> Result<Vec<TargetEval>> {
+    let pred = m.stream(&seq.inputs)?;
+    let n = seq.len().max(1) as f64;
+    let mut out = Vec::new();
+    for k in 0..m.dims.output {
+        let (mut b, mut a, mut p, mut p_ok) = (0.0f64, 0.0f64, 0.0f64, true);
+        for t in 0..seq.len() {
+            let y = seq.targets[t][k] as f64;
+            b += (y - seq.model_only[t][k] as f64).powi(2);
+            a += (y - pred[t][k] as f64).powi(2);
+            match seq.persistence[t][k] {
+                Some(v) => p += (y - v as f64).powi(2),
+                None => p_ok = false,
+            }
+        }
+        let (rb, ra) = ((b / n).sqrt(), (a / n).sqrt());
+        out.push(TargetEval {
+            name: m.output_names[k].clone(),
+            rms_before: rb,
+            rms_after: ra,
+            reduction_pct: if rb > 0.0 {
+                100.0 * (1.0 - ra / rb)
+            } else {
+                0.0
+            },
+            rms_persistence: (p_ok && !seq.is_empty()).then(|| (p / n).sqrt()),
+        });
+    }
+    Ok(out)
+}
+
+/// A Markdown table of the figures.
+pub fn markdown(rows: &[TargetEval]) -> String {
+    let mut s = String::from(
+        "| output | RMS before | RMS after | reduction % | RMS persistence |\n|---|---:|---:|---:|---:|\n",
+    );
+    for r in rows {
+        let p = r
+            .rms_persistence
+            .map_or("-".to_string(), |v| format!("{v:.4}"));
+        s += &format!(
+            "| {} | {:.4} | {:.4} | {:.1} | {} |\n",
+            r.name, r.rms_before, r.rms_after, r.reduction_pct, p
+        );
+    }
+    s
+}
+
+/// One output's figures in the `evaluate` report: [`TargetEval`] plus rows and baseline.
+#[derive(Clone, Debug, Serialize)]
+pub struct ReportRow {
+    /// The network's figures.
+    #[serde(flatten)]
+    pub eval: TargetEval,
+    /// Rows evaluated (target steps).
+    pub samples: usize,
+    /// RMS [N·m] of `tau_meas - baseline` on the same rows (`None`: no baseline given, or
+    /// the output is not a joint's measured torque).
+    pub baseline_rms_nm: Option<f64>,
+}
+
+/// The robot joint (1-based) whose measured torque `tau_meas_jN` an output predicts.
+pub fn target_joint(spec: &FeatureSpec, output: usize) -> Option<usize> {
+    spec.targets
+        .get(output)?
+        .column
+        .strip_prefix("tau_meas_j")?
+        .parse()
+        .ok()
+}
+
+/// Joints (1-based, first-seen order) whose measured torque some output of `spec` predicts.
+pub fn target_joints(spec: &FeatureSpec) -> Vec<usize> {
+    let mut js = Vec::new();
+    for k in 0..spec.targets.len() {
+        if let Some(j) = target_joint(spec, k).filter(|j| !js.contains(j)) {
+            js.push(j);
+        }
+    }
+    js
+}
+
+/// Per output of `spec`: RMS [N·m] of `tau_meas - baseline` over the `steps` rows of the
+/// sequence `spec` extracts from `table` (row `t` is compared at the target's step
+/// `t + shift`); `None` for outputs that are not a fitted joint's measured torque.
+pub fn baseline_rms(
+    spec: &FeatureSpec,
+    table: &Table,
+    steps: usize,
+    baseline: &LinearBaseline,
+) -> Result<Vec<Option<f64>>> {
+    let pred = baseline.predict(table)?;
+    let mut out = Vec::new();
+    for (k, t) in spec.targets.iter().enumerate() {
+        let Some(b) = target_joint(spec, k)
+            .and_then(|j| baseline.joints.iter().position(|&x| x == j))
+            .map(|i| &pred[i])
+        else {
+            out.push(None);
+            continue;
+        };
+        if steps + t.shift > table.len() {
+            bail!(
+                "{}: {steps} steps shifted by {} exceed the table's {} rows",
+                table.path.display(),
+                t.shift,
+                table.len()
+            );
+        }
+        let y = table.column(&t.column)?;
+        let ss: f64 = (0..steps)
+            .map(|r| (y[r + t.shift] as f64 - b[r + t.shift]).powi(2))
+            .sum();
+        out.push((steps > 0).then(|| (ss / steps as f64).sqrt()));
+    }
+    Ok(out)
+}
+
+/// A Markdown table of the figures with the linear baseline's RMS [N·m] beside them.
+pub fn markdown_with_baseline(rows: &[ReportRow]) -> String {
+    let mut s = String::from(
+        "| output | RMS before | RMS after | reduction % | RMS persistence | RMS baseline |\n|---|---:|---:|---:|---:|---:|\n",
+    );
+    let cell = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.4}"));
+    for r in rows {
+        let e = &r.eval;
+        s += &format!(
+            "| {} | {:.4} | {:.4} | {:.1} | {} | {} |\n",
+            e.name,
+            e.rms_before,
+            e.rms_after,
+            e.reduction_pct,
+            cell(e.rms_persistence),
+            cell(r.baseline_rms_nm)
+        );
+    }
+    s
+}
+
+/// The paper's Table 2 (Zhang et al. 2020), wrist joints 4-6: (joint, RMS before,
+/// RMS after [N m], reduction [%]).
+pub const PAPER_TABLE2: [(usize, f64, f64, f64); 3] = [
+    (4, 3.61, 1.21, 66.5),
+    (5, 4.84, 1.02, 78.9),
+    (6, 6.10, 2.33, 61.8),
+];
+
+/// For the paper's wrist joints (4, 5, 6, in this order): a Markdown table of ours beside
+/// the paper's Table 2; `None` for other joints.
+pub fn beside_paper_markdown(joints: &[usize], rows: &[TargetEval]) -> Option<String> {
+    if joints != [4, 5, 6] || rows.len() != 3 {
+        return None;
+    }
+    let mut s = String::from(
+        "| joint | paper before | paper after | paper reduction % | ours before | ours after | ours reduction % | ours persistence |\n|---|---:|---:|---:|---:|---:|---:|---:|\n",
+    );
+    for ((j, pb, pa, pr), r) in PAPER_TABLE2.iter().zip(rows) {
+        let p = r
+            .rms_persistence
+            .map_or("-".to_string(), |v| format!("{v:.4}"));
+        s += &format!(
+            "| {j} | {pb:.2} | {pa:.2} | {pr:.1} | {:.4} | {:.4} | {:.1} | {p} |\n",
+            r.rms_before, r.rms_after, r.reduction_pct
+        );
+    }
+    Some(s)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn row(before: f64, after: f64) -> TargetEval {
+        TargetEval {
+            name: "y".into(),
+            rms_before: before,
+            rms_after: after,
+            reduction_pct: 100.0 * (1.0 - after / before),
+            rms_persistence: Some(0.5),
+        }
+    }
+
+    #[test]
+    fn the_baseline_is_compared_at_the_targets_step() {
+        // A baseline equal to the model torque has the model-only RMS in every preset.
+        let n = 50;
+        let col = |f: &dyn Fn(usize) -> f32| (0..n).map(f).collect::<Vec<f32>>();
+        let table = Table {
+            path: "mem.csv".into(),
+            names: [
+                "q_j2",
+                "qd_j2",
+                "qdd_j2",
+                "rest_dir_j2",
+                "tau_meas_j2",
+                "tau_model_j2",
+            ]
+            .map(String::from)
+            .to_vec(),
+            columns: vec![
+                col(&|k| k as f32 * 0.1),
+                col(&|k| (k as f32 * 0.3).sin()),
+                col(&|_| 0.0),
+                col(&|_| 0.0),
+                col(&|k| (k * k % 7) as f32),
+                col(&|k| (k % 5) as f32),
+            ],
+        };
+        let mut coefficients = vec![vec![0.0; crate::baseline::N_FEATURES]];
+        coefficients[0][1] = 1.0;
+        let b = LinearBaseline {
+            joints: vec![2],
+            feature_names: vec![],
+            coefficients,
+            train_rms_nm: vec![0.0],
+            samples: 0,
+        };
+        for spec in [FeatureSpec::paper(&[2]), FeatureSpec::feedforward(&[2])] {
+            let seq = spec.sequence(&table).unwrap();
+            let m = LstmModel::init(
+                firmware::lstm::LstmDims {
+                    input: spec.inputs.len(),
+                    embed: 4,
+                    hidden: 4,
+                    output: 1,
+                },
+                1,
+            );
+            let before = evaluate(&m, &seq).unwrap()[0].rms_before;
+            let got = baseline_rms(&spec, &table, seq.len(), &b).unwrap()[0].unwrap();
+            assert!(
+                (got - before).abs() < 1e-9,
+                "{}: {got} vs {before}",
+                spec.preset
+            );
+        }
+        let custom = FeatureSpec::custom(&["q_j2".into()], &["qd_j2".into()], 0).unwrap();
+        assert_eq!(target_joints(&custom), Vec::<usize>::new());
+        assert_eq!(baseline_rms(&custom, &table, n, &b).unwrap(), vec![None]);
+    }
+
+    #[test]
+    fn the_paper_table_stands_beside_the_wrist_only() {
+        let rows = [row(2.0, 1.0), row(3.0, 1.5), row(4.0, 1.0)];
+        let t = beside_paper_markdown(&[4, 5, 6], &rows).expect("wrist");
+        assert_eq!(t.lines().count(), 5);
+        assert!(t.contains("| 5 | 4.84 | 1.02 | 78.9 | 3.0000 | 1.5000 | 50.0 | 0.5000 |"));
+        assert!(beside_paper_markdown(&[1, 2, 3], &rows).is_none());
+        assert!(beside_paper_markdown(&[4, 5, 6], &rows[..2]).is_none());
+    }
+}

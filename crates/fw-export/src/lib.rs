@@ -1,0 +1,1538 @@
+//! Quantise a compensation network into the firmware's kernel layout
+//! (`firmware::quant`, Q formats documented there) and write it, with the
+//! normalisation, feature preset, joints, control rate and optionally the dynamics
+//! model, as ONE Rust source file of fixed-size `static`/`const` arrays that the
+//! firmware compiles in (`model-export export`).
+//!
+//! The host evaluation of an exported network runs the firmware's own shape-erased
+//! kernels (`QuantView::step`, `F32View::step`) on the exporter's vectors, so the
+//! predictions written into the file (`SELF_CHECK_*`) are what the target computes.
+#![deny(unsafe_code)]
+#![warn(missing_docs)]
+use anyhow::{Context, Result, bail};
+use compnet::model::LstmModel;
+use firmware::dynamics::RigidBodyModel;
+use firmware::lstm::InputActivation;
+use firmware::quant::{
+    ACT_FRAC_BITS, F32Dims, F32View, I8Weights, I16Weights, INPUT_FRAC_BITS, QuantDims, QuantView,
+    WeightFormat, act,
+};
+use robot::dynamics::firmware_model::FirmwareModel;
+use sha2::{Digest, Sha256};
+use std::fmt::Write as _;
+
+/// Version of the generated file's layout and numerics: the firmware's.
+pub const SCHEMA_VERSION: u32 = firmware::model::SCHEMA_VERSION;
+
+/// Numeric precision of an exported network.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Precision {
+    /// f32 weights and activations.
+    F32,
+    /// int16 weights, int16 activations.
+    Int16,
+    /// int8 weights, int16 activations.
+    Int8,
+}
+
+impl Precision {
+    /// All precisions, in report order.
+    pub const ALL: [Precision; 3] = [Precision::F32, Precision::Int16, Precision::Int8];
+    /// Name in reports and generated files.
+    pub fn name(self) -> &'static str {
+        match self {
+            Precision::F32 => "f32",
+            Precision::Int16 => "int16",
+            Precision::Int8 => "int8",
+        }
+    }
+}
+
+/// Why a network cannot be exported.
+#[derive(Debug, thiserror::Error)]
+pub enum ExportError {
+    /// A weight or normalisation value is NaN or infinite.
+    #[error("tensor `{tensor}` element {index} is {value}: weights must be finite")]
+    NotFinite {
+        /// Tensor name (interchange name).
+        tensor: &'static str,
+        /// Flat index.
+        index: usize,
+        /// The value.
+        value: f32,
+    },
+    /// No power-of-two weight scale fits a layer (or gate) into the Q format.
+    #[error(
+        "layer `{layer}`: weights up to {max_abs:e} (bias up to {max_bias:e}) overflow the Q \
+         format: no power-of-two scale 2^-P with P >= {p_min} keeps every weight within the \
+         format and every accumulator below 2^31 (a smaller P would put the activation \
+         index shift outside 1..=31); the weights are too large"
+    )]
+    ScaleOverflow {
+        /// Layer name (`input`, `lstm gate i`, ...).
+        layer: &'static str,
+        /// Largest weight magnitude.
+        max_abs: f64,
+        /// Largest bias magnitude.
+        max_bias: f64,
+        /// Smallest exponent the index shift allows.
+        p_min: i32,
+    },
+    /// A linear input layer's outputs have no int16 format the kernel can shift to.
+    #[error(
+        "layer `input` (linear): its outputs reach {bound:e} for inputs within the Q3.12 \
+         range (+-8 after normalisation), and no int16 format of them has a requantisation \
+         shift in 1..=31 that keeps the accumulator below 2^31; the weights are too large"
+    )]
+    LinearInputRange {
+        /// Largest `|e|` the layer can give.
+        bound: f64,
+    },
+    /// A standard deviation is not positive.
+    #[error("tensor `{tensor}` element {index} is {value}: standard deviations must be > 0")]
+    BadStd {
+        /// Tensor name.
+        tensor: &'static str,
+        /// Index.
+        index: usize,
+        /// Value.
+        value: f32,
+    },
+    /// The model does not fit the flash budget.
+    #[error(
+        "the exported network needs {bytes} bytes of flash, over the budget of {budget} bytes \
+         ({source_file})"
+    )]
+    TooLarge {
+        /// Bytes of weights.
+        bytes: usize,
+        /// Budget.
+        budget: u64,
+        /// Where the budget comes from.
+        source_file: String,
+    },
+}
+
+fn check_finite(m: &LstmModel) -> Result<(), ExportError> {
+    for (tensor, v) in m.tensors() {
+        if let Some(index) = v.iter().position(|x| !x.is_finite()) {
+            return Err(ExportError::NotFinite {
+                tensor,
+                index,
+                value: v[index],
+            });
+        }
+    }
+    for (tensor, v) in [
+        ("norm.input_std", &m.input_std),
+        ("norm.output_std", &m.output_std),
+    ] {
+        if let Some(index) = v.iter().position(|&x| x <= 0.0) {
+            return Err(ExportError::BadStd {
+                tensor,
+                index,
+                value: v[index],
+            });
+        }
+    }
+    Ok(())
+}
+
+fn pad4(n: usize) -> usize {
+    n.div_ceil(4) * 4
+}
+
+/// The network's rows in kernel order with padding: returns `(rows, bias)` for each
+/// layer, as f64. Gate block `j` = rows `i_j, f_j, g_j, o_j`, columns `[e (Ep); h (Hp)]`.
+struct Layers {
+    e_pad: usize,
+    h_pad: usize,
+    input: (Vec<Vec<f64>>, Vec<f64>),
+    gates: (Vec<Vec<f64>>, Vec<f64>),
+    output: (Vec<Vec<f64>>, Vec<f64>),
+}
+
+fn layers(m: &LstmModel, in_cols: usize) -> Layers {
+    let d = m.dims;
+    let (i, e, h, o) = (d.input, d.embed, d.hidden, d.output);
+    let (ep, hp) = (pad4(e), pad4(h));
+    let mut input = (vec![vec![0.0; in_cols]; ep], vec![0.0; ep]);
+    for r in 0..e {
+        for k in 0..i {
+            input.0[r][k] = m.w_in[r * i + k] as f64;
+        }
+        input.1[r] = m.b_in[r] as f64;
+    }
+    let mut gates = (vec![vec![0.0; ep + hp]; 4 * hp], vec![0.0; 4 * hp]);
+    for j in 0..h {
+        for g in 0..4 {
+            let src = g * h + j;
+            let row = &mut gates.0[4 * j + g];
+            for (dst, w) in row.iter_mut().zip(&m.w_ih[src * e..(src + 1) * e]) {
+                *dst = *w as f64;
+            }
+            for (dst, w) in row[ep..].iter_mut().zip(&m.w_hh[src * h..(src + 1) * h]) {
+                *dst = *w as f64;
+            }
+            // The LSTM's two biases summed in f32, as the f32 firmware step does.
+            gates.1[4 * j + g] = (m.b_ih[src] + m.b_hh[src]) as f64;
+        }
+    }
+    let mut output = (vec![vec![0.0; hp]; pad4(o)], vec![0.0; pad4(o)]);
+    for r in 0..o {
+        for k in 0..h {
+            output.0[r][k] = m.w_out[r * h + k] as f64;
+        }
+        output.1[r] = m.b_out[r] as f64;
+    }
+    Layers {
+        e_pad: ep,
+        h_pad: hp,
+        input,
+        gates,
+        output,
+    }
+}
+
+/// An integer network in the kernel layout, with run-time sizes.
+#[derive(Clone, Debug)]
+pub struct QuantNet<F: WeightFormat> {
+    /// Sizes.
+    pub dims: QuantDims,
+    /// `[I]`
+    pub input_mean: Vec<f32>,
+    /// `[I]`
+    pub input_scale: Vec<f32>,
+    /// Input layer.
+    pub in_w: Vec<F::Quad>,
+    /// Input bias.
+    pub in_bias: Vec<[i32; 4]>,
+    /// Activation after the input layer.
+    pub in_activation: InputActivation,
+    /// Shift of the input layer's accumulators (tanh index or linear requantisation).
+    pub in_shift: u32,
+    /// Gates.
+    pub gate_w: Vec<F::Quad>,
+    /// Gate bias.
+    pub gate_bias: Vec<[i32; 4]>,
+    /// Activation-index shifts of the gates `i, f, g, o`.
+    pub gate_shift: [u32; 4],
+    /// Output layer.
+    pub out_w: Vec<F::Quad>,
+    /// Output scale.
+    pub out_scale: Vec<[f32; 4]>,
+    /// Output offset.
+    pub out_offset: Vec<[f32; 4]>,
+}
+
+const ACC_LIMIT: f64 = 2_147_483_647.0;
+
+/// Largest `sum_k |w_q[k]| * 32768 + |b_q|` of `rows` at exponent `p` (weights
+/// `round(w 2^p)`, bias `round(b 2^(p + x_frac))`), or `None` when a weight leaves
+/// `+-max_w`.
+fn worst_accumulator(rows: &[(&[f64], f64)], p: i32, x_frac: u32, max_w: i32) -> Option<f64> {
+    let mut worst = 0.0f64;
+    for (w, b) in rows {
+        let mut sum = (b * 2f64.powi(p + x_frac as i32)).round().abs();
+        for x in w.iter() {
+            let q = (x * 2f64.powi(p)).round();
+            if q.abs() > max_w as f64 {
+                return None;
+            }
+            sum += q.abs() * 32768.0;
+        }
+        worst = worst.max(sum);
+    }
+    Some(worst)
+}
+
+/// The power-of-two exponent `P` of a group of rows sharing one scale (`w ~ w_q 2^-P`):
+/// the largest for which every weight fits `+-max_w` and no accumulator can reach 2^31
+/// for any input, with the activation-index shift `P + x_frac - 9` in `1..=31`.
+fn group_exponent(
+    layer: &'static str,
+    rows: &[(&[f64], f64)],
+    x_frac: u32,
+    max_w: i32,
+) -> Result<i32, ExportError> {
+    let grid = act::GRID_FRAC_BITS as i32;
+    let (p_min, p_max) = (1 + grid - x_frac as i32, 31 + grid - x_frac as i32);
+    (p_min..=p_max)
+        .rev()
+        .find(|&p| worst_accumulator(rows, p, x_frac, max_w).is_some_and(|a| a < ACC_LIMIT))
+        .ok_or_else(|| {
+            let fold = |f: fn(&(&[f64], f64)) -> f64| rows.iter().map(f).fold(0.0, f64::max);
+            ExportError::ScaleOverflow {
+                layer,
+                max_abs: fold(|(w, _)| w.iter().fold(0.0f64, |a, x| a.max(x.abs()))),
+                max_bias: fold(|(_, b)| b.abs()),
+                p_min,
+            }
+        })
+}
+
+/// Quantises a dense layer (blocks of 4 rows, quads of 4 columns) with exponent
+/// `exp[r % 4]` for row `r`: the quads and the biases in accumulator scale.
+fn quant_layer<F: WeightFormat>(
+    rows: &[Vec<f64>],
+    bias: &[f64],
+    x_frac: u32,
+    exp: [i32; 4],
+) -> (Vec<F::Quad>, Vec<[i32; 4]>) {
+    let cols = pad4(rows.first().map_or(0, Vec::len));
+    let q = |r: usize, k: usize| {
+        let x = rows[r].get(k).copied().unwrap_or(0.0);
+        (x * 2f64.powi(exp[r % 4])).round() as i32
+    };
+    let mut w = Vec::new();
+    let mut bias4 = Vec::new();
+    for blk in 0..rows.len() / 4 {
+        for c in 0..cols / 4 {
+            w.push(F::pack(std::array::from_fn(|r| {
+                std::array::from_fn(|k| q(4 * blk + r, 4 * c + k))
+            })));
+        }
+        bias4.push(std::array::from_fn(|r| {
+            let row = 4 * blk + r;
+            (bias[row] * 2f64.powi(exp[r] + x_frac as i32)).round() as i32
+        }));
+    }
+    (w, bias4)
+}
+
+/// Largest `|e|` a linear input layer can give for any Q3.12 input (`|x_n| <= 8`):
+/// `max_r sum_k |w_rk| * 8 + |b_r|`.
+fn linear_embed_bound(rows: &[(&[f64], f64)]) -> f64 {
+    let x_max = 32768.0 / f64::from(1u32 << INPUT_FRAC_BITS);
+    rows.iter()
+        .map(|(w, b)| w.iter().map(|x| x.abs()).sum::<f64>() * x_max + b.abs())
+        .fold(0.0, f64::max)
+}
+
+/// Fraction bits `F` of a linear input layer's `e` (int16, `Q(15-F).F`): the most for
+/// which [`linear_embed_bound`] fits, at most 15.
+fn linear_embed_frac_bits(rows: &[(&[f64], f64)]) -> i32 {
+    let bound = linear_embed_bound(rows);
+    let mut f = ACT_FRAC_BITS as i32;
+    while f > -16 && bound * 2f64.powi(f) >= 32767.0 {
+        f -= 1;
+    }
+    f
+}
+
+/// Index shift of an accumulator with `p + x_frac` fraction bits.
+fn index_shift(p: i32, x_frac: u32) -> u32 {
+    (p + x_frac as i32 - act::GRID_FRAC_BITS as i32) as u32
+}
+
+/// Quantises one output row with its own scale (f32 multiplier at the output):
+/// returns the integer weights and the scale `s` (`w ~ s * w_q`), enlarged where needed
+/// so that `sum |w_q| * 32768 < 2^31`.
+fn quantise_output_row(w: &[f64], max_w: i32) -> (Vec<i32>, f64) {
+    let maxabs = w.iter().fold(0.0f64, |a, x| a.max(x.abs()));
+    if maxabs == 0.0 {
+        return (vec![0; w.len()], 0.0);
+    }
+    let mut s = maxabs / max_w as f64;
+    loop {
+        let wq: Vec<i32> = w
+            .iter()
+            .map(|x| ((x / s).round() as i32).clamp(-max_w, max_w))
+            .collect();
+        let bound = wq.iter().map(|q| q.unsigned_abs() as f64).sum::<f64>() * 32768.0;
+        if bound < ACC_LIMIT {
+            return (wq, s);
+        }
+        s *= bound / (ACC_LIMIT - 65536.0) * 1.0001;
+    }
+}
+
+/// Gate names in block order, for errors.
+const GATE_LAYERS: [&str; 4] = ["lstm gate i", "lstm gate f", "lstm gate g", "lstm gate o"];
+
+impl<F: WeightFormat> QuantNet<F> {
+    /// Quantises `m` (see `firmware::quant` for the scheme).
+    pub fn quantise(m: &LstmModel) -> Result<Self, ExportError> {
+        check_finite(m)?;
+        let d = m.dims;
+        let ip = pad4(d.input);
+        let mut l = layers(m, ip);
+        let (x_in, x_z) = (INPUT_FRAC_BITS, ACT_FRAC_BITS);
+        let in_rows: Vec<(&[f64], f64)> = l
+            .input
+            .0
+            .iter()
+            .zip(&l.input.1)
+            .map(|(w, b)| (w.as_slice(), *b))
+            .collect();
+        let p_in = group_exponent("input", &in_rows, x_in, F::MAX_WEIGHT)?;
+        // A linear input layer: e in F fraction bits, the shift to it, and the factor
+        // 2^(15 - F) on the gate weights of the e columns (module docs of firmware::quant).
+        let (in_shift, e_frac) = match m.input_activation {
+            InputActivation::Tanh => (index_shift(p_in, x_in), ACT_FRAC_BITS as i32),
+            InputActivation::Linear => {
+                let e_frac = linear_embed_frac_bits(&in_rows);
+                let shift = p_in + x_in as i32 - e_frac;
+                if !(1..=31).contains(&shift) {
+                    return Err(ExportError::LinearInputRange {
+                        bound: linear_embed_bound(&in_rows),
+                    });
+                }
+                (shift as u32, e_frac)
+            }
+        };
+        let e_gain = 2f64.powi(ACT_FRAC_BITS as i32 - e_frac);
+        if e_gain != 1.0 {
+            for row in l.gates.0.iter_mut() {
+                for w in row[..l.e_pad].iter_mut() {
+                    *w *= e_gain;
+                }
+            }
+        }
+        let mut p_gate = [0i32; 4];
+        for (g, p) in p_gate.iter_mut().enumerate() {
+            let rows: Vec<(&[f64], f64)> = (g..l.gates.0.len())
+                .step_by(4)
+                .map(|r| (l.gates.0[r].as_slice(), l.gates.1[r]))
+                .collect();
+            *p = group_exponent(GATE_LAYERS[g], &rows, x_z, F::MAX_WEIGHT)?;
+        }
+        let (in_w, mut in_bias) = quant_layer::<F>(&l.input.0, &l.input.1, x_in, [p_in; 4]);
+        if m.input_activation == InputActivation::Linear {
+            // Round to nearest: the half step of the shift in the bias (the kernel's
+            // arithmetic shift floors).
+            let half = 1i64 << (in_shift - 1);
+            let worst = worst_accumulator(&in_rows, p_in, x_in, F::MAX_WEIGHT).unwrap_or(ACC_LIMIT);
+            if worst + half as f64 >= ACC_LIMIT {
+                return Err(ExportError::LinearInputRange {
+                    bound: linear_embed_bound(&in_rows),
+                });
+            }
+            for b in in_bias.iter_mut().flatten() {
+                *b = (*b as i64 + half) as i32;
+            }
+        }
+        let (gate_w, gate_bias) = quant_layer::<F>(&l.gates.0, &l.gates.1, x_z, p_gate);
+        // Output layer: no integer bias; y = acc * s * 2^-15 * std + (b * std + mean).
+        let mut out_w = Vec::new();
+        let mut out_scale = Vec::new();
+        let mut out_offset = Vec::new();
+        let hp = l.h_pad;
+        let ob = pad4(d.output) / 4;
+        let mut rows_q = Vec::new();
+        let mut sc = Vec::new();
+        let mut off = Vec::new();
+        for (r, row) in l.output.0.iter().enumerate() {
+            let (mut q, s) = quantise_output_row(row, F::MAX_WEIGHT);
+            q.resize(hp, 0);
+            rows_q.push(q);
+            if r < d.output {
+                let std = m.output_std[r];
+                sc.push((s * 2f64.powi(-15)) as f32 * std);
+                off.push(m.b_out[r] * std + m.output_mean[r]);
+            } else {
+                sc.push(0.0);
+                off.push(0.0);
+            }
+        }
+        for blk in 0..ob {
+            for q in 0..hp / 4 {
+                let mm: [[i32; 4]; 4] = std::array::from_fn(|r| {
+                    std::array::from_fn(|k| rows_q[4 * blk + r][4 * q + k])
+                });
+                out_w.push(F::pack(mm));
+            }
+            out_scale.push(std::array::from_fn(|r| sc[4 * blk + r]));
+            out_offset.push(std::array::from_fn(|r| off[4 * blk + r]));
+        }
+        let net = QuantNet {
+            dims: QuantDims {
+                input: d.input,
+                input_quads: ip / 4,
+                embed_blocks: l.e_pad / 4,
+                hidden: hp,
+                output: d.output,
+                output_blocks: ob,
+            },
+            input_mean: m.input_mean.clone(),
+            input_scale: m.input_std.iter().map(|s| 4096.0 / s).collect(),
+            in_w,
+            in_bias,
+            in_activation: m.input_activation,
+            in_shift,
+            gate_w,
+            gate_bias,
+            gate_shift: p_gate.map(|p| index_shift(p, x_z)),
+            out_w,
+            out_scale,
+            out_offset,
+        };
+        debug_assert_eq!(net.view().check(), None);
+        Ok(net)
+    }
+
+    /// The firmware view of this network.
+    pub fn view(&self) -> QuantView<'_, F> {
+        QuantView {
+            dims: self.dims,
+            input_mean: &self.input_mean,
+            input_scale: &self.input_scale,
+            in_w: &self.in_w,
+            in_bias: &self.in_bias,
+            in_activation: self.in_activation,
+            in_shift: self.in_shift,
+            gate_w: &self.gate_w,
+            gate_bias: &self.gate_bias,
+            gate_shift: self.gate_shift,
+            out_w: &self.out_w,
+            out_scale: &self.out_scale,
+            out_offset: &self.out_offset,
+        }
+    }
+
+    /// Streams the firmware kernel from the zero state over `inputs`.
+    pub fn stream(&self, inputs: &[Vec<f32>]) -> Vec<Vec<f32>> {
+        let d = self.dims;
+        let v = self.view();
+        let mut z = vec![[0u32; 2]; d.z_quads()];
+        let mut c = vec![0i16; d.hidden];
+        let mut xq = vec![[0u32; 2]; d.input_quads];
+        let mut hn = vec![[0u32; 2]; d.hidden / 4];
+        let mut acc = vec![[0i32; 4]; d.hidden];
+        inputs
+            .iter()
+            .map(|x| {
+                let mut y = vec![0.0f32; d.output];
+                v.step(&mut z, &mut c, &mut xq, &mut hn, &mut acc, x, &mut y);
+                y
+            })
+            .collect()
+    }
+
+    /// Bytes of flash the arrays take.
+    pub fn flash_bytes(&self) -> usize {
+        let q = std::mem::size_of::<F::Quad>();
+        (self.in_w.len() + self.gate_w.len() + self.out_w.len()) * q
+            + (self.in_bias.len() + self.gate_bias.len()) * 16
+            + (self.out_scale.len() + self.out_offset.len()) * 16
+            + self.input_mean.len() * 8
+    }
+}
+
+/// The f32 network in the kernel layout, with run-time sizes.
+#[derive(Clone, Debug)]
+pub struct F32Net {
+    /// Sizes.
+    pub dims: F32Dims,
+    /// `[I]`
+    pub input_mean: Vec<f32>,
+    /// `[I]`
+    pub input_inv_std: Vec<f32>,
+    /// Input layer.
+    pub w_in: Vec<[f32; 4]>,
+    /// Input bias.
+    pub b_in: Vec<[f32; 4]>,
+    /// Activation after the input layer.
+    pub input_activation: InputActivation,
+    /// Gates.
+    pub w_gates: Vec<[f32; 4]>,
+    /// Gate bias.
+    pub b_gates: Vec<[f32; 4]>,
+    /// Output layer.
+    pub w_out: Vec<[f32; 4]>,
+    /// Output bias.
+    pub b_out: Vec<[f32; 4]>,
+    /// Output std.
+    pub output_std: Vec<[f32; 4]>,
+    /// Output mean.
+    pub output_mean: Vec<[f32; 4]>,
+}
+
+#[allow(clippy::needless_range_loop)] // k indexes the columns of 4 rows at once
+fn interleave(rows: &[Vec<f64>]) -> Vec<[f32; 4]> {
+    let cols = rows.first().map_or(0, Vec::len);
+    let mut out = Vec::new();
+    for blk in rows.chunks_exact(4) {
+        for k in 0..cols {
+            out.push(std::array::from_fn(|r| blk[r][k] as f32));
+        }
+    }
+    out
+}
+
+fn blocks4(v: &[f64]) -> Vec<[f32; 4]> {
+    v.chunks_exact(4)
+        .map(|c| std::array::from_fn(|r| c[r] as f32))
+        .collect()
+}
+
+impl F32Net {
+    /// Rearranges `m` into the kernel layout (no rounding: every value is the f32 of
+    /// the model; the gate bias is `bias_ih + bias_hh` in f32).
+    pub fn arrange(m: &LstmModel) -> Result<Self, ExportError> {
+        check_finite(m)?;
+        let d = m.dims;
+        let l = layers(m, d.input);
+        let o = pad4(d.output);
+        let mut std = vec![0.0f64; o];
+        let mut mean = vec![0.0f64; o];
+        for r in 0..d.output {
+            std[r] = m.output_std[r] as f64;
+            mean[r] = m.output_mean[r] as f64;
+        }
+        let net = F32Net {
+            dims: F32Dims {
+                input: d.input,
+                embed_blocks: l.e_pad / 4,
+                hidden: l.h_pad,
+                output: d.output,
+                output_blocks: o / 4,
+            },
+            input_mean: m.input_mean.clone(),
+            input_inv_std: m.input_std.iter().map(|s| 1.0 / s).collect(),
+            w_in: interleave(&l.input.0),
+            b_in: blocks4(&l.input.1),
+            input_activation: m.input_activation,
+            w_gates: interleave(&l.gates.0),
+            b_gates: blocks4(&l.gates.1),
+            w_out: interleave(&l.output.0),
+            b_out: blocks4(&l.output.1),
+            output_std: blocks4(&std),
+            output_mean: blocks4(&mean),
+        };
+        debug_assert_eq!(net.view().check(), None);
+        Ok(net)
+    }
+
+    /// The firmware view.
+    pub fn view(&self) -> F32View<'_> {
+        F32View {
+            dims: self.dims,
+            input_mean: &self.input_mean,
+            input_inv_std: &self.input_inv_std,
+            w_in: &self.w_in,
+            b_in: &self.b_in,
+            input_activation: self.input_activation,
+            w_gates: &self.w_gates,
+            b_gates: &self.b_gates,
+            w_out: &self.w_out,
+            b_out: &self.b_out,
+            output_std: &self.output_std,
+            output_mean: &self.output_mean,
+        }
+    }
+
+    /// Streams the firmware kernel from the zero state over `inputs`.
+    pub fn stream(&self, inputs: &[Vec<f32>]) -> Vec<Vec<f32>> {
+        let d = self.dims;
+        let v = self.view();
+        let e = 4 * d.embed_blocks;
+        let mut z = vec![0.0f32; e + d.hidden];
+        let mut c = vec![0.0f32; d.hidden];
+        let mut xn = vec![0.0f32; d.input];
+        let mut hn = vec![0.0f32; d.hidden];
+        let mut acc = vec![[0.0f32; 4]; d.hidden];
+        inputs
+            .iter()
+            .map(|x| {
+                let mut y = vec![0.0f32; d.output];
+                v.step(&mut z, &mut c, &mut xn, &mut hn, &mut acc, x, &mut y);
+                y
+            })
+            .collect()
+    }
+
+    /// Bytes of flash the arrays take.
+    pub fn flash_bytes(&self) -> usize {
+        (self.w_in.len()
+            + self.b_in.len()
+            + self.w_gates.len()
+            + self.b_gates.len()
+            + self.w_out.len()
+            + 3 * self.b_out.len())
+            * 16
+            + self.input_mean.len() * 8
+    }
+}
+
+/// An exported network in one of the precisions.
+#[derive(Clone, Debug)]
+pub enum Exported {
+    /// f32.
+    F32(F32Net),
+    /// int16 weights.
+    Int16(QuantNet<I16Weights>),
+    /// int8 weights.
+    Int8(QuantNet<I8Weights>),
+}
+
+impl Exported {
+    /// Quantises / arranges `m` for `p`.
+    pub fn new(m: &LstmModel, p: Precision) -> Result<Self, ExportError> {
+        Ok(match p {
+            Precision::F32 => Exported::F32(F32Net::arrange(m)?),
+            Precision::Int16 => Exported::Int16(QuantNet::quantise(m)?),
+            Precision::Int8 => Exported::Int8(QuantNet::quantise(m)?),
+        })
+    }
+
+    /// Streams the firmware kernel from the zero state.
+    pub fn stream(&self, inputs: &[Vec<f32>]) -> Vec<Vec<f32>> {
+        match self {
+            Exported::F32(n) => n.stream(inputs),
+            Exported::Int16(n) => n.stream(inputs),
+            Exported::Int8(n) => n.stream(inputs),
+        }
+    }
+
+    /// Activation after the network's input layer.
+    pub fn input_activation(&self) -> InputActivation {
+        match self {
+            Exported::F32(n) => n.input_activation,
+            Exported::Int16(n) => n.in_activation,
+            Exported::Int8(n) => n.in_activation,
+        }
+    }
+
+    /// Bytes of flash the network's arrays take.
+    pub fn flash_bytes(&self) -> usize {
+        match self {
+            Exported::F32(n) => n.flash_bytes(),
+            Exported::Int16(n) => n.flash_bytes(),
+            Exported::Int8(n) => n.flash_bytes(),
+        }
+    }
+}
+
+/// FNV-1a over the bits of every output of every step (the self-check digest).
+pub fn output_digest(outputs: &[Vec<f32>]) -> u64 {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    for row in outputs {
+        for y in row {
+            for b in y.to_bits().to_le_bytes() {
+                h ^= b as u64;
+                h = h.wrapping_mul(0x0000_0100_0000_01b3);
+            }
+        }
+    }
+    h
+}
+
+/// What goes into the generated file besides the network.
+#[derive(Clone, Debug)]
+pub struct ExportMeta {
+    /// Feature preset (`paper`, `feedforward`, `custom`).
+    pub preset: String,
+    /// Indices of the compensated joints (0-based).
+    pub joints: Vec<usize>,
+    /// Control rate [Hz].
+    pub control_rate_hz: u32,
+    /// Steps of golden input for the self-check (`firmware::quant::golden_input`).
+    pub self_check_steps: usize,
+    /// Where the model's arrays live on the target, and why.
+    pub placement: PlacementChoice,
+}
+
+/// The `link_section` attribute of the model's arrays placed in SRAM: an input section
+/// of cortex-m-rt's `.data` (run address in RAM, load image in flash, copied by its
+/// reset handler before `main`, so the static holds its value whenever Rust code reads
+/// it; `unsafe_code` is allowed for this one attribute of the static). Host builds
+/// ignore it.
+pub const SRAM_SECTION_ATTRIBUTE: &str = "#[cfg_attr(target_os = \"none\", allow(unsafe_code), \
+     unsafe(link_section = \".data.model_arrays\"))]";
+
+/// Where the exporter puts the model's arrays (network, linear stage, rigid-body model).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Placement {
+    /// Flash (`.rodata`), read over the flash interface every tick.
+    Flash,
+    /// SRAM (`.data`, copied from flash at reset): zero wait states.
+    Sram,
+}
+
+/// Where `export --weights-in` puts the model's arrays.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum WeightsIn {
+    /// Flash.
+    Flash,
+    /// SRAM (an error when a budget file is given and they do not fit its SRAM budget).
+    Sram,
+    /// SRAM when they fit the budget file's SRAM budget, flash otherwise (and without a
+    /// budget file).
+    Auto,
+}
+
+impl WeightsIn {
+    /// Every choice, in the order the command line lists them.
+    pub const ALL: [Self; 3] = [Self::Flash, Self::Sram, Self::Auto];
+
+    /// The choice's name on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Flash => "flash",
+            Self::Sram => "sram",
+            Self::Auto => "auto",
+        }
+    }
+}
+
+/// Reads the board's flash limit from a budget file.
+pub fn flash_budget(path: &std::path::Path) -> anyhow::Result<u64> {
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+    let v: toml::Value =
+        toml::from_str(&text).with_context(|| format!("parsing {}", path.display()))?;
+    v.get("binary")
+        .and_then(|b| b.get("board"))
+        .and_then(|b| b.get("flash_bytes"))
+        .and_then(toml::Value::as_integer)
+        .with_context(|| {
+            format!(
+                "{}: field `binary.board.flash_bytes` missing",
+                path.display()
+            )
+        })
+        .and_then(|x| {
+            u64::try_from(x).ok().filter(|&b| b > 0).with_context(|| {
+                format!(
+                    "{}: field `binary.board.flash_bytes` = {x}: must be a positive byte count",
+                    path.display()
+                )
+            })
+        })
+}
+
+/// Reads the board's SRAM budget for a model's arrays from a budget file and the
+/// linker memory layout it names (`mcu.memory_layout`, relative to the budget file).
+pub fn sram_budget(path: &std::path::Path) -> anyhow::Result<SramBudget> {
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+    let v: toml::Value =
+        toml::from_str(&text).with_context(|| format!("parsing {}", path.display()))?;
+    let field = |keys: &[&str]| {
+        keys.iter()
+            .try_fold(&v, |t, k| t.get(k))
+            .with_context(|| format!("{}: field `{}` missing", path.display(), keys.join(".")))
+    };
+    let bytes = |keys: &[&str]| -> anyhow::Result<u64> {
+        field(keys)?
+            .as_integer()
+            .and_then(|x| u64::try_from(x).ok())
+            .with_context(|| {
+                format!(
+                    "{}: field `{}` is not a byte count",
+                    path.display(),
+                    keys.join(".")
+                )
+            })
+    };
+    let layout = field(&["mcu", "memory_layout"])?
+        .as_str()
+        .with_context(|| {
+            format!(
+                "{}: field `mcu.memory_layout` is not a path",
+                path.display()
+            )
+        })?;
+    let layout = path
+        .parent()
+        .unwrap_or(std::path::Path::new("."))
+        .join(layout);
+    let layout_text = std::fs::read_to_string(&layout).with_context(|| {
+        format!(
+            "reading {} (`mcu.memory_layout` of {})",
+            layout.display(),
+            path.display()
+        )
+    })?;
+    let layout_ram_bytes =
+        layout_ram_bytes(&layout_text).map_err(|e| anyhow::anyhow!("{}: {e}", layout.display()))?;
+    Ok(SramBudget {
+        layout_ram_bytes,
+        ram_limit_bytes: bytes(&["binary", "board", "ram_bytes"])?,
+        stack_reserve_bytes: bytes(&["binary", "board", "stack_reserve_bytes"])?,
+        firmware_ram_bytes: bytes(&["binary", "board", "firmware_ram_bytes"])?,
+    })
+}
+
+/// Chooses where each of the model's arrays lives. `auto` fills the SRAM budget in the
+/// order of what a tick reads most: the network, then the rigid-body model, then the
+/// linear stage; each goes to SRAM when it fits what is left, to flash otherwise.
+pub fn choose_placement(
+    want: WeightsIn,
+    bytes: ModelBytes,
+    sram_budget_bytes: Option<u64>,
+) -> Result<PlacementChoice> {
+    let total = bytes.network + bytes.dynamics + bytes.linear_stage;
+    let all = |p| [p; 3];
+    let [network, dynamics, linear_stage] = match (want, sram_budget_bytes) {
+        (WeightsIn::Flash, _) | (WeightsIn::Auto, None) => all(Placement::Flash),
+        (WeightsIn::Sram, None) => all(Placement::Sram),
+        (WeightsIn::Sram, Some(b)) if total as u64 <= b => all(Placement::Sram),
+        (WeightsIn::Sram, Some(b)) => bail!(
+            "--weights-in sram: the model's arrays need {total} bytes, over the SRAM budget \
+             of {b} bytes (the board's RAM less the stack reserve and the firmware's own RAM)"
+        ),
+        (WeightsIn::Auto, Some(b)) => {
+            let mut left = b;
+            [bytes.network, bytes.dynamics, bytes.linear_stage].map(|n| {
+                if n as u64 <= left {
+                    left -= n as u64;
+                    Placement::Sram
+                } else {
+                    Placement::Flash
+                }
+            })
+        }
+    };
+    Ok(PlacementChoice {
+        network,
+        dynamics,
+        linear_stage,
+        bytes,
+        sram_budget_bytes,
+    })
+}
+
+/// Bytes of each of the model's arrays.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ModelBytes {
+    /// `NETWORK`.
+    pub network: usize,
+    /// `DYNAMICS` (0 without a rigid-body model).
+    pub dynamics: usize,
+    /// `LINEAR_STAGE`.
+    pub linear_stage: usize,
+}
+
+/// Where each of the model's arrays lives, and the budget the choice was weighed against.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PlacementChoice {
+    /// `NETWORK`.
+    pub network: Placement,
+    /// `DYNAMICS`.
+    pub dynamics: Placement,
+    /// `LINEAR_STAGE`.
+    pub linear_stage: Placement,
+    /// Their sizes.
+    pub bytes: ModelBytes,
+    /// The SRAM budget for the model's arrays [bytes], when a budget file was given.
+    pub sram_budget_bytes: Option<u64>,
+}
+
+impl PlacementChoice {
+    /// One line describing the choice (the generated file's header and `export`'s output).
+    pub fn describe(&self) -> String {
+        let at = |p: Placement| match p {
+            Placement::Sram => "SRAM",
+            Placement::Flash => "flash",
+        };
+        let budget = match self.sram_budget_bytes {
+            Some(b) => format!("SRAM budget for the model {b} bytes"),
+            None => "no budget file".to_string(),
+        };
+        format!(
+            "network {} bytes in {}, rigid-body model {} bytes in {}, linear stage {} bytes in {} \
+             (SRAM: .data, copied from flash at reset; flash: .rodata); {budget}",
+            self.bytes.network,
+            at(self.network),
+            self.bytes.dynamics,
+            at(self.dynamics),
+            self.bytes.linear_stage,
+            at(self.linear_stage),
+        )
+    }
+}
+
+/// The board's SRAM budget for a model's arrays, from the budget file and the linker
+/// memory layout it names.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SramBudget {
+    /// Length of the `RAM` region in the memory layout (`memory.x`) [bytes].
+    pub layout_ram_bytes: u64,
+    /// The board binary's RAM limit (`binary.board.ram_bytes`) [bytes].
+    pub ram_limit_bytes: u64,
+    /// The board's stack reserve (`binary.board.stack_reserve_bytes`) [bytes].
+    pub stack_reserve_bytes: u64,
+    /// RAM of the board firmware's own static data and buffers
+    /// (`binary.board.firmware_ram_bytes`) [bytes].
+    pub firmware_ram_bytes: u64,
+}
+
+impl SramBudget {
+    /// Bytes left for the model's arrays: the smaller of the two RAM sizes, less the
+    /// stack reserve and the firmware's own static RAM.
+    pub fn model_bytes(&self) -> u64 {
+        self.layout_ram_bytes
+            .min(self.ram_limit_bytes)
+            .saturating_sub(self.stack_reserve_bytes)
+            .saturating_sub(self.firmware_ram_bytes)
+    }
+}
+
+/// Length in bytes of the `RAM` region of a linker memory layout (`memory.x`):
+/// `RAM : ORIGIN = ..., LENGTH = 96K` (decimal or `0x` hex, optional `K` or `M`).
+/// Errors name the line.
+pub fn layout_ram_bytes(text: &str) -> Result<u64, String> {
+    for (k, line) in text.lines().enumerate() {
+        let code = line.split("/*").next().unwrap_or("");
+        let Some((name, rest)) = code.split_once(':') else {
+            continue;
+        };
+        if name.trim() != "RAM" {
+            continue;
+        }
+        let length = rest
+            .split(',')
+            .filter_map(|f| f.split_once('='))
+            .find(|(key, _)| key.trim() == "LENGTH")
+            .map(|(_, v)| v.trim())
+            .ok_or_else(|| format!("line {}: region RAM has no LENGTH", k + 1))?;
+        return parse_layout_size(length)
+            .ok_or_else(|| format!("line {}: field LENGTH of region RAM is not a size", k + 1));
+    }
+    Err("no RAM region".into())
+}
+
+fn parse_layout_size(v: &str) -> Option<u64> {
+    let (digits, unit) = match v.as_bytes().last()? {
+        b'K' | b'k' => (&v[..v.len() - 1], 1024),
+        b'M' | b'm' => (&v[..v.len() - 1], 1024 * 1024),
+        _ => (v, 1),
+    };
+    let n = match digits
+        .strip_prefix("0x")
+        .or_else(|| digits.strip_prefix("0X"))
+    {
+        Some(hex) => u64::from_str_radix(&hex.replace('_', ""), 16).ok()?,
+        None => digits.replace('_', "").parse::<u64>().ok()?,
+    };
+    n.checked_mul(unit)
+}
+
+fn f32_lit(x: f32) -> String {
+    let s = format!("{x:?}");
+    if s.contains('.') || s.contains('e') || s.contains("inf") || s.contains("NaN") {
+        s
+    } else {
+        format!("{s}.0")
+    }
+}
+
+fn list<T>(v: &[T], f: impl Fn(&T) -> String) -> String {
+    let items: Vec<String> = v.iter().map(f).collect();
+    format!("[{}]", items.join(", "))
+}
+
+fn quads_i16(q: &[[u32; 4]; 2]) -> String {
+    format!(
+        "[{}, {}]",
+        list(&q[0], |w| format!("{w:#010x}")),
+        list(&q[1], |w| format!("{w:#010x}"))
+    )
+}
+
+fn quads_i8(q: &[u32; 4]) -> String {
+    list(q, |w| format!("{w:#010x}"))
+}
+
+fn nested<T: Copy>(flat: &[T], per: usize, f: impl Fn(&T) -> String) -> String {
+    let chunks: Vec<String> = flat.chunks(per.max(1)).map(|c| list(c, &f)).collect();
+    format!("[\n    {}\n]", chunks.join(",\n    "))
+}
+
+fn write_quant<F: WeightFormat>(
+    s: &mut String,
+    section: &str,
+    n: &QuantNet<F>,
+    fmt: &str,
+    quad: impl Fn(&F::Quad) -> String,
+) {
+    let d = n.dims;
+    let (i, iq, eb, h, hq, zq, o, ob) = (
+        d.input,
+        d.input_quads,
+        d.embed_blocks,
+        d.hidden,
+        d.hidden / 4,
+        d.z_quads(),
+        d.output,
+        d.output_blocks,
+    );
+    let _ = writeln!(
+        s,
+        "/// The network's integer format: `{}` weights, the input activation and the \
+         activation-index shifts of its power-of-two scales.",
+        F::NAME
+    );
+    let _ = writeln!(s, "pub struct Format;");
+    let _ = writeln!(s, "impl QuantFormat for Format {{");
+    let _ = writeln!(s, "    type Weights = {fmt};");
+    let _ = writeln!(
+        s,
+        "    const INPUT_ACTIVATION: InputActivation = InputActivation::{};",
+        activation_variant(n.in_activation)
+    );
+    let _ = writeln!(s, "    const INPUT_SHIFT: u32 = {};", n.in_shift);
+    let _ = writeln!(
+        s,
+        "    const GATE_SHIFTS: [u32; 4] = {};",
+        list(&n.gate_shift, |x| x.to_string())
+    );
+    let _ = writeln!(s, "}}");
+    let _ = writeln!(s, "/// The network's type: sizes from the exporter.");
+    let _ = writeln!(
+        s,
+        "pub type Network = QuantLstm<Format, {i}, {iq}, {eb}, {h}, {hq}, {zq}, {o}, {ob}>;"
+    );
+    let _ = writeln!(s, "/// The network's recurrent state.");
+    let _ = writeln!(s, "pub type State = QuantState<{zq}, {h}>;");
+    let _ = writeln!(s, "/// The network.");
+    let _ = write!(s, "{section}");
+    let _ = writeln!(s, "pub static NETWORK: Network = QuantLstm {{");
+    let _ = writeln!(
+        s,
+        "    input_mean: {},",
+        list(&n.input_mean, |x| f32_lit(*x))
+    );
+    let _ = writeln!(
+        s,
+        "    input_scale: {},",
+        list(&n.input_scale, |x| f32_lit(*x))
+    );
+    let _ = writeln!(s, "    in_w: {},", nested(&n.in_w, iq, &quad));
+    let _ = writeln!(
+        s,
+        "    in_bias: {},",
+        list(&n.in_bias, |b| list(b, |x| x.to_string()))
+    );
+    let _ = writeln!(s, "    gate_w: {},", nested(&n.gate_w, zq, &quad));
+    let _ = writeln!(
+        s,
+        "    gate_bias: {},",
+        list(&n.gate_bias, |b| list(b, |x| x.to_string()))
+    );
+    let _ = writeln!(s, "    out_w: {},", nested(&n.out_w, hq, &quad));
+    let _ = writeln!(
+        s,
+        "    out_scale: {},",
+        list(&n.out_scale, |b| list(b, |x| f32_lit(*x)))
+    );
+    let _ = writeln!(
+        s,
+        "    out_offset: {},",
+        list(&n.out_offset, |b| list(b, |x| f32_lit(*x)))
+    );
+    let _ = writeln!(s, "}};");
+}
+
+/// The `InputActivation` variant's name in a generated file (a closed set, never text
+/// from the input).
+fn activation_variant(a: InputActivation) -> &'static str {
+    match a {
+        InputActivation::Tanh => "Tanh",
+        InputActivation::Linear => "Linear",
+    }
+}
+
+/// The `firmware::quant::InputLayer` type of an activation.
+fn input_layer_type(a: InputActivation) -> &'static str {
+    match a {
+        InputActivation::Tanh => "TanhInput",
+        InputActivation::Linear => "LinearInput",
+    }
+}
+
+fn write_f32(s: &mut String, section: &str, n: &F32Net) {
+    let d = n.dims;
+    let (i, eb, h, o, ob) = (d.input, d.embed_blocks, d.hidden, d.output, d.output_blocks);
+    let e = 4 * eb;
+    let z = e + h;
+    let v4 = |b: &[f32; 4]| list(b, |x| f32_lit(*x));
+    let layer = input_layer_type(n.input_activation);
+    let _ = writeln!(
+        s,
+        "/// The network's type: f32, sizes and input activation from the exporter."
+    );
+    let _ = writeln!(
+        s,
+        "pub type Network = F32Lstm<{i}, {e}, {eb}, {h}, {z}, {o}, {ob}, {layer}>;"
+    );
+    let _ = writeln!(s, "/// The network's recurrent state.");
+    let _ = writeln!(s, "pub type State = F32State<{z}, {h}>;");
+    let _ = writeln!(s, "/// The network.");
+    let _ = write!(s, "{section}");
+    let _ = writeln!(s, "pub static NETWORK: Network = F32Lstm {{");
+    let _ = writeln!(
+        s,
+        "    input_mean: {},",
+        list(&n.input_mean, |x| f32_lit(*x))
+    );
+    let _ = writeln!(
+        s,
+        "    input_inv_std: {},",
+        list(&n.input_inv_std, |x| f32_lit(*x))
+    );
+    let _ = writeln!(s, "    w_in: {},", nested(&n.w_in, i, v4));
+    let _ = writeln!(s, "    b_in: {},", list(&n.b_in, v4));
+    let _ = writeln!(s, "    input_layer: {layer},");
+    let _ = writeln!(s, "    w_gates: {},", nested(&n.w_gates, z, v4));
+    let _ = writeln!(s, "    b_gates: {},", list(&n.b_gates, v4));
+    let _ = writeln!(s, "    w_out: {},", nested(&n.w_out, h, v4));
+    let _ = writeln!(s, "    b_out: {},", list(&n.b_out, v4));
+    let _ = writeln!(s, "    output_std: {},", list(&n.output_std, v4));
+    let _ = writeln!(s, "    output_mean: {},", list(&n.output_mean, v4));
+    let _ = writeln!(s, "}};");
+}
+
+fn write_dynamics<const N: usize>(s: &mut String, section: &str, m: &RigidBodyModel<N>) {
+    let v3 = |v: &[f32; 3]| list(v, |x| f32_lit(*x));
+    let _ = writeln!(s, "/// Number of joints of the rigid-body model.");
+    let _ = writeln!(s, "pub const DYNAMICS_JOINTS: usize = {N};");
+    let _ = writeln!(s, "/// The identified (or nominal) rigid-body model, f32.");
+    let _ = write!(s, "{section}");
+    let _ = writeln!(
+        s,
+        "pub static DYNAMICS: RigidBodyModel<{N}> = RigidBodyModel {{"
+    );
+    let _ = writeln!(s, "    joints: [");
+    for j in &m.joints {
+        let _ = writeln!(s, "        JointModel {{");
+        let _ = writeln!(
+            s,
+            "            origin_rotation: {},",
+            list(&j.origin_rotation, v3)
+        );
+        let _ = writeln!(
+            s,
+            "            origin_translation_m: {},",
+            v3(&j.origin_translation_m)
+        );
+        let _ = writeln!(s, "            axis: {},", v3(&j.axis));
+        let _ = writeln!(
+            s,
+            "            inertial: {},",
+            list(&j.inertial, |x| f32_lit(*x))
+        );
+        let _ = writeln!(
+            s,
+            "            viscous_nm_s_rad: {},",
+            f32_lit(j.viscous_nm_s_rad)
+        );
+        let _ = writeln!(s, "            coulomb_nm: {},", f32_lit(j.coulomb_nm));
+        let _ = writeln!(s, "            offset_nm: {},", f32_lit(j.offset_nm));
+        let _ = writeln!(
+            s,
+            "            rotor_inertia_kg_m2: {},",
+            f32_lit(j.rotor_inertia_kg_m2)
+        );
+        let f = |x: &f32| f32_lit(*x);
+        let _ = writeln!(s, "            stribeck_nm: {},", list(&j.stribeck_nm, f));
+        let _ = writeln!(
+            s,
+            "            quadratic_nm_s2_rad2: {},",
+            f32_lit(j.quadratic_nm_s2_rad2)
+        );
+        let _ = writeln!(s, "        }},");
+    }
+    let _ = writeln!(s, "    ],");
+    let _ = writeln!(s, "    gravity_m_s2: {},", v3(&m.gravity_m_s2));
+    let _ = writeln!(
+        s,
+        "    coulomb_inv_eps_s_rad: {},",
+        f32_lit(m.coulomb_inv_eps_s_rad)
+    );
+    let _ = writeln!(s, "}};");
+}
+
+/// Bytes of the `DYNAMICS` static of a model of any joint count.
+pub fn dynamics_bytes(d: &FirmwareModel) -> usize {
+    match d {
+        FirmwareModel::J1(m) => std::mem::size_of_val(m),
+        FirmwareModel::J2(m) => std::mem::size_of_val(m),
+        FirmwareModel::J3(m) => std::mem::size_of_val(m),
+        FirmwareModel::J4(m) => std::mem::size_of_val(m),
+        FirmwareModel::J5(m) => std::mem::size_of_val(m),
+        FirmwareModel::J6(m) => std::mem::size_of_val(m),
+        FirmwareModel::J7(m) => std::mem::size_of_val(m),
+    }
+}
+
+/// Writes the `DYNAMICS` items of the generated file for a model of any joint count.
+fn write_any_dynamics(s: &mut String, section: &str, d: &FirmwareModel) {
+    match d {
+        FirmwareModel::J1(m) => write_dynamics(s, section, m),
+        FirmwareModel::J2(m) => write_dynamics(s, section, m),
+        FirmwareModel::J3(m) => write_dynamics(s, section, m),
+        FirmwareModel::J4(m) => write_dynamics(s, section, m),
+        FirmwareModel::J5(m) => write_dynamics(s, section, m),
+        FirmwareModel::J6(m) => write_dynamics(s, section, m),
+        FirmwareModel::J7(m) => write_dynamics(s, section, m),
+    }
+}
+
+/// The golden inputs of the self-check: `firmware::quant::golden::input`.
+pub fn golden_inputs(n_inputs: usize, steps: usize) -> Vec<Vec<f32>> {
+    (0..steps)
+        .map(|t| {
+            (0..n_inputs)
+                .map(|k| firmware::quant::golden::input(t, k))
+                .collect()
+        })
+        .collect()
+}
+
+/// Renders the whole generated file.
+pub fn render(
+    m: &LstmModel,
+    net: &Exported,
+    meta: &ExportMeta,
+    dynamics: Option<&FirmwareModel>,
+) -> String {
+    let mut body = String::new();
+    // The attribute line placing a static in SRAM (a closed set, never input text).
+    let attribute = |p: Placement| match p {
+        Placement::Sram => format!("{SRAM_SECTION_ATTRIBUTE}\n"),
+        Placement::Flash => String::new(),
+    };
+    let (network_section, dynamics_section, section) = (
+        attribute(meta.placement.network),
+        attribute(meta.placement.dynamics),
+        attribute(meta.placement.linear_stage),
+    );
+    let section = section.as_str();
+    let preset = match meta.preset.as_str() {
+        "paper" => "Paper",
+        "feedforward" => "Feedforward",
+        "drive" => "Drive",
+        _ => "Custom",
+    };
+    let s = &mut body;
+    let _ = writeln!(
+        s,
+        "/// Layout version of this file (`model_export::export::SCHEMA_VERSION`)."
+    );
+    let _ = writeln!(s, "pub const SCHEMA_VERSION: u32 = {SCHEMA_VERSION};");
+    let prec = match net {
+        Exported::F32(_) => "F32",
+        Exported::Int16(_) => "Int16",
+        Exported::Int8(_) => "Int8",
+    };
+    let _ = writeln!(s, "/// Numeric precision of the network.");
+    let _ = writeln!(s, "pub const PRECISION: Precision = Precision::{prec};");
+    let _ = writeln!(s, "/// Activation after the network's input layer.");
+    let _ = writeln!(
+        s,
+        "pub const INPUT_ACTIVATION: InputActivation = InputActivation::{};",
+        activation_variant(net.input_activation())
+    );
+    let _ = writeln!(s, "/// Feature preset the network was trained with.");
+    let _ = writeln!(
+        s,
+        "pub const FEATURE_PRESET: FeaturePreset = FeaturePreset::{preset};"
+    );
+    let _ = writeln!(s, "/// Number of inputs.");
+    let _ = writeln!(s, "pub const INPUTS: usize = {};", m.dims.input);
+    let _ = writeln!(s, "/// Number of outputs.");
+    let _ = writeln!(s, "pub const OUTPUTS: usize = {};", m.dims.output);
+    let _ = writeln!(
+        s,
+        "/// The `drive` preset's linear stage: per output, coefficients [N*m per unit] of\n\
+         /// `features::FRICTION_FEATURE_NAMES` (zero for other presets)."
+    );
+    let f = firmware::features::FRICTION_FEATURES;
+    // Without a linear stage the file does not depend on the number of features.
+    let stage = if m.linear.iter().all(|&x| x == 0.0) {
+        "[[0.0; crate::features::FRICTION_FEATURES]; OUTPUTS]".to_string()
+    } else {
+        let rows: Vec<Vec<f32>> = (0..m.dims.output)
+            .map(|k| {
+                m.linear
+                    .get(k * f..(k + 1) * f)
+                    .map_or_else(|| vec![0.0; f], <[f32]>::to_vec)
+            })
+            .collect();
+        list(&rows, |r| list(r, |x| f32_lit(*x)))
+    };
+    let _ = write!(s, "{section}");
+    let _ = writeln!(
+        s,
+        "pub static LINEAR_STAGE: [[f32; crate::features::FRICTION_FEATURES]; OUTPUTS] = {stage};"
+    );
+    let _ = writeln!(s, "/// Input feature names, in input order.");
+    let _ = writeln!(
+        s,
+        "pub const INPUT_NAMES: [&str; {}] = {};",
+        m.dims.input,
+        list(&m.input_names, |n| format!("{n:?}"))
+    );
+    let _ = writeln!(s, "/// Output names, in output order.");
+    let _ = writeln!(
+        s,
+        "pub const OUTPUT_NAMES: [&str; {}] = {};",
+        m.dims.output,
+        list(&m.output_names, |n| format!("{n:?}"))
+    );
+    let _ = writeln!(s, "/// Indices (0-based) of the compensated joints.");
+    let _ = writeln!(
+        s,
+        "pub const JOINT_INDICES: [usize; {}] = {};",
+        meta.joints.len(),
+        list(&meta.joints, |j| j.to_string())
+    );
+    let _ = writeln!(
+        s,
+        "/// Control (compensator) rate the network was trained for [Hz]."
+    );
+    let _ = writeln!(
+        s,
+        "pub const CONTROL_RATE_HZ: u32 = {};",
+        meta.control_rate_hz
+    );
+    match net {
+        Exported::F32(n) => write_f32(s, &network_section, n),
+        Exported::Int16(n) => write_quant(s, &network_section, n, "I16Weights", quads_i16),
+        Exported::Int8(n) => write_quant(s, &network_section, n, "I8Weights", quads_i8),
+    }
+    if let Some(d) = dynamics {
+        write_any_dynamics(s, &dynamics_section, d);
+    } else {
+        let _ = writeln!(
+            s,
+            "/// Number of joints of the rigid-body model (0: none exported)."
+        );
+        let _ = writeln!(s, "pub const DYNAMICS_JOINTS: usize = 0;");
+    }
+    let outs = net.stream(&golden_inputs(m.dims.input, meta.self_check_steps));
+    let _ = writeln!(
+        s,
+        "/// Self-check: streaming steps of `firmware::quant::golden::input` from the zero state."
+    );
+    let _ = writeln!(
+        s,
+        "pub const SELF_CHECK_STEPS: usize = {};",
+        meta.self_check_steps
+    );
+    let _ = writeln!(
+        s,
+        "/// Self-check: FNV-1a of the output bits of those steps, computed by the exporter."
+    );
+    let _ = writeln!(
+        s,
+        "pub const SELF_CHECK_FNV: u64 = {:#018x};",
+        output_digest(&outs)
+    );
+    let hash = Sha256::digest(body.as_bytes());
+    let hash64 = u64::from_be_bytes(hash[..8].try_into().unwrap_or([0; 8]));
+    let mut out = String::new();
+    let _ = writeln!(
+        out,
+        "// Generated by `model-export export` (schema {SCHEMA_VERSION}); do not edit."
+    );
+    let _ = writeln!(
+        out,
+        "// Network {}x{}x{}x{} ({}), preset {}, joints {:?}, {} Hz.",
+        m.dims.input,
+        m.dims.embed,
+        m.dims.hidden,
+        m.dims.output,
+        prec,
+        // The closed set's name, never the model file's text.
+        preset,
+        meta.joints,
+        meta.control_rate_hz
+    );
+    let _ = writeln!(out, "// Placement: {}.", meta.placement.describe());
+    let _ = writeln!(out, "#[allow(unused_imports)]");
+    let _ = writeln!(out, "use robot::dynamics::{{JointModel, RigidBodyModel}};");
+    let _ = writeln!(out, "#[allow(unused_imports)]");
+    let _ = writeln!(out, "use crate::model::{{FeaturePreset, Precision}};");
+    let _ = writeln!(out, "#[allow(unused_imports)]");
+    let _ = writeln!(out, "use crate::lstm::InputActivation;");
+    let _ = writeln!(out, "#[allow(unused_imports)]");
+    let _ = writeln!(
+        out,
+        "use crate::quant::{{F32Lstm, F32State, I8Weights, I16Weights, LinearInput, QuantFormat, QuantLstm, QuantState, TanhInput}};"
+    );
+    let _ = writeln!(
+        out,
+        "/// SHA-256 (first 8 bytes) of everything below this line."
+    );
+    let _ = writeln!(out, "pub const CONTENT_HASH: u64 = {hash64:#018x};");
+    out.push_str(&body);
+    out
+}
+
+/// One precision's accuracy on one output.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct AccuracyRow {
+    /// Precision name (`f32`, `int16`, `int8`).
+    pub precision: &'static str,
+    /// Output name.
+    pub output: String,
+    /// RMS of the precision's streamed output against the f32 firmware step.
+    pub rms_vs_f32: f64,
+    /// RMS error against the targets ("compensated RMS"), with targets.
+    pub compensated_rms: Option<f64>,
+    /// f32's compensated RMS, with targets.
+    pub f32_compensated_rms: Option<f64>,
+}
+
+/// Per-output RMS of each precision's streamed output against the f32 firmware step
+/// (`nn::model::LstmModel::stream`), and, with `targets`, each one's RMS error against
+/// the targets ("compensated RMS") beside f32's.
+pub fn accuracy(
+    m: &LstmModel,
+    inputs: &[Vec<f32>],
+    targets: Option<&[Vec<f32>]>,
+) -> Result<Vec<AccuracyRow>> {
+    let reference = m.stream(inputs)?;
+    let rms = |a: &[Vec<f32>], b: &[Vec<f32>], j: usize| -> f64 {
+        let s: f64 = a
+            .iter()
+            .zip(b)
+            .map(|(x, y)| ((x[j] - y[j]) as f64).powi(2))
+            .sum();
+        (s / a.len().max(1) as f64).sqrt()
+    };
+    let mut rows = Vec::new();
+    for p in Precision::ALL {
+        let y = Exported::new(m, p)?.stream(inputs);
+        for j in 0..m.dims.output {
+            rows.push(AccuracyRow {
+                precision: p.name(),
+                output: m.output_names[j].clone(),
+                rms_vs_f32: rms(&y, &reference, j),
+                compensated_rms: targets.map(|t| rms(&y, t, j)),
+                f32_compensated_rms: targets.map(|t| rms(&reference, t, j)),
+            });
+        }
+    }
+    Ok(rows)
+}
+
+/// [`accuracy`] as a Markdown table (ratio = compensated RMS / f32's).
+pub fn accuracy_markdown(rows: &[AccuracyRow]) -> String {
+    let mut out = String::new();
+    let _ = writeln!(
+        out,
+        "| precision | output | RMS vs f32 step | compensated RMS | f32 compensated RMS | ratio |"
+    );
+    let _ = writeln!(out, "|---|---|---:|---:|---:|---:|");
+    for r in rows {
+        let (c, f, ratio) = match (r.compensated_rms, r.f32_compensated_rms) {
+            (Some(c), Some(f)) => (
+                format!("{c:.5}"),
+                format!("{f:.5}"),
+                format!("{:.4}", c / f),
+            ),
+            _ => ("-".into(), "-".into(), "-".into()),
+        };
+        let _ = writeln!(
+            out,
+            "| {} | {} | {:.3e} | {c} | {f} | {ratio} |",
+            r.precision, r.output, r.rms_vs_f32
+        );
+    }
+    out
+}

@@ -1,0 +1,294 @@
+//! The identified model as a versioned JSON file that later stages consume.
+//!
+//! Schema version [`MODEL_SCHEMA_VERSION`]. Written with [`artifacts::write_atomic`]: a
+//! failure never leaves a partial file.
+
+use artifacts::write_atomic;
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// Schema version written into every model file; bump on incompatible changes.
+pub const MODEL_SCHEMA_VERSION: u32 = 1;
+
+/// The robot description the model was identified for.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RobotRef {
+    /// Robot name (from the URDF or DH file).
+    pub name: String,
+    /// Path of the description file as given.
+    pub source_path: String,
+    /// SHA-256 of the description file.
+    pub sha256: String,
+    /// The modelled chain of a URDF tree (absent: the description's default chain).
+    #[serde(default, skip_serializing_if = "ChainRef::is_default")]
+    pub chain: ChainRef,
+}
+
+/// The chain of a URDF tree a model was identified on (`--base-link`, `--tip-link`,
+/// `--side-joint`).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct ChainRef {
+    /// Base link; `None`: the root.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub base_link: Option<String>,
+    /// Tip link; `None`: the single end of the moving joints.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tip_link: Option<String>,
+    /// Positions of moving joints outside the chain [rad or m].
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub side_joints: Vec<LockedJoint>,
+}
+
+impl ChainRef {
+    /// Whether this is the description's default chain.
+    pub fn is_default(&self) -> bool {
+        *self == ChainRef::default()
+    }
+
+    /// The same chain as a robot loader's selection.
+    pub fn selection(&self) -> robot::ChainSelection {
+        robot::ChainSelection {
+            base_link: self.base_link.clone(),
+            tip_link: self.tip_link.clone(),
+            side_joint_positions: self
+                .side_joints
+                .iter()
+                .map(|j| (j.name.clone(), j.position_rad))
+                .collect(),
+        }
+    }
+
+    /// The record of a loader's selection.
+    pub fn from_selection(s: &robot::ChainSelection) -> Self {
+        ChainRef {
+            base_link: s.base_link.clone(),
+            tip_link: s.tip_link.clone(),
+            side_joints: s
+                .side_joint_positions
+                .iter()
+                .map(|(name, q)| LockedJoint {
+                    name: name.clone(),
+                    position_rad: *q,
+                })
+                .collect(),
+        }
+    }
+}
+
+/// A joint held at a fixed position during identification.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct LockedJoint {
+    /// Joint name.
+    pub name: String,
+    /// Position [rad].
+    pub position_rad: f64,
+}
+
+/// One identified base parameter.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct BaseParameter {
+    /// Short name.
+    pub name: String,
+    /// The combination of standard parameters it stands for.
+    pub expression: String,
+    /// Estimate (SI units).
+    pub value: f64,
+    /// Standard deviation of the estimate.
+    pub std: f64,
+    /// Relative standard deviation [%].
+    pub relative_std_pct: f64,
+}
+
+/// Friction of one modelled joint.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct JointFriction {
+    /// Joint name.
+    pub joint: String,
+    /// Viscous coefficient [N·m·s/rad], if modelled.
+    pub viscous_nm_s_rad: Option<f64>,
+    /// Coulomb coefficient [N·m], if modelled.
+    pub coulomb_nm: Option<f64>,
+    /// Constant offset [N·m], if modelled.
+    pub offset_nm: Option<f64>,
+}
+
+/// The non-rigid-body terms of the model (the regressor's extra columns).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ModelTermsRef {
+    /// Viscous friction per joint.
+    pub viscous_friction: bool,
+    /// Coulomb friction per joint.
+    pub coulomb_friction: bool,
+    /// Constant offset per joint.
+    pub friction_offset: bool,
+    /// Coulomb sign smoothed as tanh(q̇ / eps) [rad/s]; `None` = hard sign.
+    pub coulomb_smoothing_rad_s: Option<f64>,
+    /// Reflected rotor inertia per joint.
+    pub rotor_inertia: bool,
+    /// The extended friction basis per joint (offset, velocity-weakening and quadratic
+    /// terms); absent in older files (false).
+    #[serde(default)]
+    pub extended_friction: bool,
+}
+
+/// A log used for identification or validation.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct LogRef {
+    /// Path as given.
+    pub path: String,
+    /// SHA-256 of the file.
+    pub sha256: String,
+    /// Samples after preprocessing.
+    pub samples: usize,
+}
+
+/// Per-joint error figures on a data set.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ErrorReport {
+    /// What data: "identification" or a validation log path.
+    pub data: String,
+    /// Per-joint RMS [N·m] (firmware f32 model).
+    pub rms_nm: Vec<f64>,
+    /// Per-joint normalised RMS [%].
+    pub nrms_pct: Vec<f64>,
+    /// Samples.
+    pub samples: usize,
+}
+
+/// The identified model file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ModelFile {
+    /// [`MODEL_SCHEMA_VERSION`].
+    pub schema_version: u32,
+    /// The robot description.
+    pub robot: RobotRef,
+    /// Names of the modelled joints, in output order.
+    pub modelled_joints: Vec<String>,
+    /// Locked joints and their positions.
+    pub locked_joints: Vec<LockedJoint>,
+    /// Model terms besides the rigid body.
+    pub model_terms: ModelTermsRef,
+    /// Seed of the random states the base parameters were computed from.
+    pub base_seed: u64,
+    /// Drive gains [N·m/A] of all joints of the log (current → torque).
+    pub drive_gains_nm_per_a: Vec<f64>,
+    /// Base parameters (including friction parameters), in regressor column order.
+    pub base_parameters: Vec<BaseParameter>,
+    /// Friction per modelled joint (the friction entries of `base_parameters`).
+    pub friction: Vec<JointFriction>,
+    /// Condition number of the observation matrix (and after column scaling).
+    pub condition_number: f64,
+    /// Condition number after scaling columns to unit norm.
+    pub condition_number_scaled: f64,
+    /// Weighting used ("ordinary" or "weighted") and per-joint σ [N·m].
+    pub weighting: String,
+    /// Per-joint noise std used as weights [N·m].
+    pub joint_sigma_nm: Vec<f64>,
+    /// Logs used for identification.
+    pub identification_logs: Vec<LogRef>,
+    /// Logs used for validation.
+    pub validation_logs: Vec<LogRef>,
+    /// Error figures.
+    pub errors: Vec<ErrorReport>,
+    /// Preprocessing settings, as JSON.
+    pub preprocessing: serde_json::Value,
+}
+
+impl ModelFile {
+    /// Reads and checks the schema version.
+    pub fn read(path: &Path) -> anyhow::Result<Self> {
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| anyhow::anyhow!("{}: cannot read: {e}", path.display()))?;
+        let v: serde_json::Value = serde_json::from_str(&text).map_err(|e| {
+            anyhow::anyhow!(
+                "{}, line {}, column {}: malformed JSON: {e}",
+                path.display(),
+                e.line(),
+                e.column()
+            )
+        })?;
+        let ver = v.get("schema_version").and_then(|s| s.as_u64());
+        if ver != Some(MODEL_SCHEMA_VERSION as u64) {
+            anyhow::bail!(
+                "{}, field schema_version: expected {MODEL_SCHEMA_VERSION}, found {:?}",
+                path.display(),
+                ver
+            );
+        }
+        serde_json::from_value(v)
+            .map_err(|e| anyhow::anyhow!("{}: invalid model file: {e}", path.display()))
+    }
+
+    /// Writes atomically (temp file + rename).
+    pub fn write(&self, path: &Path) -> anyhow::Result<()> {
+        let mut text = serde_json::to_string_pretty(self)?;
+        text.push('\n');
+        write_atomic(path, text.as_bytes())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sample() -> ModelFile {
+        ModelFile {
+            schema_version: MODEL_SCHEMA_VERSION,
+            robot: RobotRef {
+                name: "r".into(),
+                source_path: "r.urdf".into(),
+                sha256: "00".into(),
+                chain: ChainRef::default(),
+            },
+            modelled_joints: vec!["j1".into()],
+            locked_joints: vec![],
+            model_terms: ModelTermsRef {
+                viscous_friction: true,
+                coulomb_friction: true,
+                friction_offset: false,
+                coulomb_smoothing_rad_s: Some(0.02),
+                rotor_inertia: false,
+                extended_friction: false,
+            },
+            base_seed: 1,
+            drive_gains_nm_per_a: vec![1.0],
+            base_parameters: vec![BaseParameter {
+                name: "a".into(),
+                expression: "ZZ1".into(),
+                value: 1.5,
+                std: 0.1,
+                relative_std_pct: 6.7,
+            }],
+            friction: vec![],
+            condition_number: 10.0,
+            condition_number_scaled: 2.0,
+            weighting: "ordinary".into(),
+            joint_sigma_nm: vec![1.0],
+            identification_logs: vec![],
+            validation_logs: vec![],
+            errors: vec![],
+            preprocessing: serde_json::Value::Null,
+        }
+    }
+
+    #[test]
+    fn round_trip_and_version_check() {
+        let d = tempfile::tempdir().unwrap();
+        let p = d.path().join("m.json");
+        let m = sample();
+        m.write(&p).unwrap();
+        assert_eq!(ModelFile::read(&p).unwrap(), m);
+        std::fs::write(&p, "{\"schema_version\": 99}").unwrap();
+        assert!(
+            ModelFile::read(&p)
+                .unwrap_err()
+                .to_string()
+                .contains("schema_version")
+        );
+        // Writing into a missing directory fails and leaves nothing behind.
+        let bad = d.path().join("missing/m.json");
+        assert!(m.write(&bad).is_err());
+        assert!(!bad.exists());
+        assert_eq!(std::fs::read_dir(d.path()).unwrap().count(), 1);
+    }
+}

@@ -1,0 +1,143 @@
+//! `model-export evaluate`: stream the firmware step over whole logs, against the baselines.
+use super::train::FeatureArgs;
+use anyhow::{Context, Result};
+use clap::Args;
+use compnet::data::{Sequence, Table};
+use compnet::{eval, io, plot};
+use std::path::{Path, PathBuf};
+
+/// `evaluate` options.
+#[derive(Debug, Args)]
+pub struct EvaluateArgs {
+    /// Model (safetensors).
+    #[arg(long)]
+    pub model: PathBuf,
+    /// CSV logs, each streamed whole from the zero state.
+    #[arg(long, required = true, value_delimiter = ',')]
+    pub data: Vec<PathBuf>,
+    /// Features (must match the model's).
+    #[command(flatten)]
+    pub features: FeatureArgs,
+    /// Report (JSON).
+    #[arg(long)]
+    pub report: Option<PathBuf>,
+    /// Folder for the paper's Figures 12 and 13 (measured, predicted and error torque
+    /// before and after compensation) of the first log.
+    #[arg(long)]
+    pub figures: Option<PathBuf>,
+    /// Training datasets (CSV, comma separated) for the friction-feature least-squares
+    /// baseline (`nn::baseline`): adds its RMS [N·m] per output (`baseline` column,
+    /// `baseline_rms_nm`).
+    #[arg(long, value_delimiter = ',')]
+    pub baseline_data: Vec<PathBuf>,
+}
+
+/// Runs `evaluate`.
+pub fn run(a: EvaluateArgs) -> Result<()> {
+    let spec = a.features.spec()?;
+    let model = io::read_model(&a.model)?;
+    spec.check_model(&model)
+        .with_context(|| format!("{}", a.model.display()))?;
+    // The linear baseline, fitted on --baseline-data (before any output).
+    let baseline = if a.baseline_data.is_empty() {
+        None
+    } else {
+        let tables: Vec<Table> = a
+            .baseline_data
+            .iter()
+            .map(|p| Table::read(p))
+            .collect::<Result<_>>()?;
+        Some(compnet::baseline::fit(
+            &tables,
+            &eval::target_joints(&spec),
+        )?)
+    };
+    let tables: Vec<Table> = a
+        .data
+        .iter()
+        .map(|p| Table::read(p))
+        .collect::<Result<_>>()?;
+    let seqs: Vec<Sequence> = tables
+        .iter()
+        .map(|t| spec.sequence(t))
+        .collect::<Result<_>>()?;
+    let mut reports = Vec::new();
+    let mut figures = Vec::new();
+    for (i, ((p, s), table)) in a.data.iter().zip(seqs).zip(&tables).enumerate() {
+        let rows = eval::evaluate(&model, &s)?;
+        let base_rms = match &baseline {
+            Some(b) => eval::baseline_rms(&spec, table, s.len(), b)?,
+            None => vec![None; rows.len()],
+        };
+        if let (0, Some(dir)) = (i, &a.figures) {
+            for (name, svg) in plot::compensation_figures(&model, &s)? {
+                figures.push((dir.join(name), svg));
+            }
+        }
+        let rows: Vec<eval::ReportRow> = rows
+            .into_iter()
+            .zip(base_rms)
+            .map(|(eval, baseline_rms_nm)| eval::ReportRow {
+                eval,
+                samples: s.len(),
+                baseline_rms_nm,
+            })
+            .collect();
+        artifacts::ensure_finite(
+            &format!("{}: evaluation", p.display()),
+            rows.iter()
+                .flat_map(|r| r.eval.figures().chain(r.baseline_rms_nm)),
+        )?;
+        let plain: Vec<eval::TargetEval> = rows.iter().map(|r| r.eval.clone()).collect();
+        println!(
+            "{} ({} steps, streamed):\n{}",
+            p.display(),
+            s.len(),
+            if baseline.is_some() {
+                eval::markdown_with_baseline(&rows)
+            } else {
+                eval::markdown(&plain)
+            }
+        );
+        let paper = (spec.preset == "paper")
+            .then(|| eval::beside_paper_markdown(&a.features.joints, &plain))
+            .flatten();
+        if let Some(t) = &paper {
+            println!("Beside the paper's Table 2 (Zhang et al. 2020, N m):\n{t}");
+        }
+        // The paper's figures for the same joints, beside ours.
+        let paper_rows: Option<Vec<serde_json::Value>> = paper.as_ref().map(|_| {
+            eval::PAPER_TABLE2
+                .iter()
+                .map(|(j, b, a, r)| {
+                    serde_json::json!({"joint": j, "rms_before": b, "rms_after": a, "reduction_pct": r})
+                })
+                .collect()
+        });
+        reports.push(
+            serde_json::json!({"file": p.display().to_string(), "steps": s.len(),
+            "outputs": rows, "paper_table2": paper_rows}),
+        );
+    }
+    let report = match &a.report {
+        Some(r) => Some((
+            r,
+            serde_json::to_string_pretty(
+                &serde_json::json!({"preset": spec.preset, "data": reports,
+                    "baseline": baseline.as_ref().map(|b| serde_json::json!({
+                        "data": a.baseline_data.iter().map(|p| p.display().to_string()).collect::<Vec<_>>(),
+                        "fit": b}))}),
+            )?,
+        )),
+        None => None,
+    };
+    // The figures and the report: all or none.
+    let mut files: Vec<(&Path, &[u8])> = figures
+        .iter()
+        .map(|(p, svg)| (p.as_path(), svg.as_bytes()))
+        .collect();
+    if let Some((path, text)) = &report {
+        files.push((path.as_path(), text.as_bytes()));
+    }
+    artifacts::write_atomic_all(&files)
+}

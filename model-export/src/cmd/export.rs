@@ -1,0 +1,350 @@
+//! `model-export export`: quantise a network and write the firmware model file.
+use crate::args::choice::named;
+use anyhow::{Context, Result, bail};
+use compnet::model::LstmModel;
+use firmware::lstm::LstmDims;
+use fw_export::*;
+use robot::RobotSource;
+use robot::dynamics::firmware_model::FirmwareModel;
+use std::path::{Path, PathBuf};
+
+/// `model-export export`.
+#[derive(Debug, clap::Args)]
+pub struct ExportArgs {
+    /// Model to export (safetensors written by `train` / `import`). Without it, a
+    /// seeded PyTorch-style initialisation of the size `--dims` (for benchmarks and
+    /// the committed default until a trained model replaces it).
+    #[arg(long)]
+    pub model: Option<PathBuf>,
+    /// Sizes `I,E,H,O` of the seeded network (without `--model`).
+    #[arg(long, value_delimiter = ',', default_value = "9,64,64,3")]
+    pub dims: Vec<usize>,
+    /// Seed of the seeded network.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Feature preset of the seeded network (`paper`, `feedforward`, `custom`).
+    #[arg(long, default_value = "paper")]
+    pub preset: String,
+    /// Compensated joints, numbered from 1 like every other command's `--joints`
+    /// (the generated file's `JOINT_INDICES` are their 0-based indices).
+    #[arg(long, value_delimiter = ',', default_value = "4,5,6")]
+    pub joints: Vec<usize>,
+    /// Control rate [Hz].
+    #[arg(long, default_value_t = 100)]
+    pub control_rate_hz: u32,
+    /// Precision.
+    #[arg(long, value_parser = named::<Precision>(), default_value = "int16")]
+    pub precision: Precision,
+    /// Robot description (DH TOML or URDF) whose nominal rigid-body model is
+    /// exported with the network.
+    #[arg(long)]
+    pub robot: Option<PathBuf>,
+    /// Identified model (JSON from `identify`) of `--robot` (default: the built-in default
+    /// robot): its parameters and joint selection are exported with the network.
+    #[arg(long)]
+    pub identified: Option<PathBuf>,
+    /// The modelled chain of a URDF tree (`--robot` without `--identified`; an
+    /// identified model brings its own).
+    #[command(flatten)]
+    pub chain: crate::args::robot::ChainArgs,
+    /// Output Rust file (written to a temporary file, then renamed).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Flash budget file (`host-tests/budgets.toml`): the network must fit the
+    /// board binary's flash limit.
+    #[arg(long)]
+    pub budgets: Option<PathBuf>,
+    /// Where the model's arrays (network, linear stage, rigid-body model) live on
+    /// the target: `auto` puts them in SRAM (copied from flash at reset, zero wait
+    /// states) when they fit the SRAM budget of `--budgets` (the board's RAM in its
+    /// `memory.x` and budget, less the stack reserve and the firmware's own RAM), in
+    /// flash otherwise.
+    #[arg(long, value_parser = named::<WeightsIn>(), default_value = "auto")]
+    pub weights_in: WeightsIn,
+    /// Steps of golden input in the self-check digest.
+    #[arg(long, default_value_t = 1000)]
+    pub self_check_steps: usize,
+    /// CSV log (columns of the model's `paper` / `feedforward` preset for
+    /// `--joints`, as `model-export torque --dataset` writes them): print per output,
+    /// for every precision streamed over it, the RMS
+    /// against the f32 firmware step and the compensated RMS against the targets
+    /// beside f32's.
+    #[arg(long)]
+    pub accuracy_log: Option<PathBuf>,
+    /// With `--accuracy-log`: also write the accuracy rows as JSON here.
+    #[arg(long, requires = "accuracy_log")]
+    pub accuracy_json: Option<PathBuf>,
+    /// Do-no-harm gate: validation runs (compensation datasets, whole runs the
+    /// network never trained on; repeat or comma-separate). A trained network is
+    /// refused when, on any of them, it is worse than the model alone on any
+    /// compensated joint. Required with `--model` unless `--allow-worse`.
+    #[arg(long = "gate-data", value_name = "CSV", value_delimiter = ',')]
+    pub gate_data: Vec<PathBuf>,
+    /// Export even when the gate finds the network worse than the model alone (or
+    /// without `--gate-data`); the generated file then carries a warning.
+    #[arg(long)]
+    pub allow_worse: bool,
+}
+
+/// Per validation run (1-based, `--gate-data` order) and compensated joint: the model
+/// alone's and the compensated RMS [N*m] (f32 firmware step), for the do-no-harm gate.
+fn gate(m: &LstmModel, a: &ExportArgs) -> Result<Vec<(usize, usize, f64, f64)>> {
+    let spec = compnet::data::FeatureSpec::for_preset(&m.preset, &a.joints).with_context(|| {
+        format!(
+            "--gate-data needs a `paper`, `feedforward` or `drive` network (this one: `{}`)",
+            m.preset
+        )
+    })?;
+    spec.check_model(m)?;
+    let mut rows = Vec::new();
+    for (run, path) in a.gate_data.iter().enumerate() {
+        let table = compnet::data::Table::read(path)?;
+        let seq = spec
+            .sequence(&table)
+            .with_context(|| format!("{}", path.display()))?;
+        for (e, &joint) in compnet::eval::evaluate(m, &seq)?.iter().zip(&a.joints) {
+            rows.push((run + 1, joint, e.rms_before, e.rms_after));
+        }
+    }
+    Ok(rows)
+}
+
+/// The 0-based indices of `--joints` (joint numbers start at 1).
+fn joint_indices(a: &ExportArgs) -> Result<Vec<usize>> {
+    a.joints
+        .iter()
+        .map(|&j| match j {
+            0 => bail!("--joints: joint numbers start at 1 (got 0)"),
+            j => Ok(j - 1),
+        })
+        .collect()
+}
+
+/// Builds the model to export.
+pub fn model(a: &ExportArgs) -> Result<LstmModel> {
+    match &a.model {
+        Some(p) => compnet::io::read_model(p),
+        None => {
+            let [i, e, h, o] = a.dims[..] else {
+                bail!("--dims needs 4 sizes I,E,H,O, got {:?}", a.dims);
+            };
+            let max = compnet::model::MAX_LAYER_WIDTH;
+            if let Some(&bad) = a.dims.iter().find(|&&d| d == 0 || d > max) {
+                bail!(
+                    "--dims {:?}: each size must be in 1..={max} (MAX_LAYER_WIDTH), got {bad}",
+                    a.dims
+                );
+            }
+            let mut m = LstmModel::init(
+                LstmDims {
+                    input: i,
+                    embed: e,
+                    hidden: h,
+                    output: o,
+                },
+                a.seed,
+            );
+            m.preset = a.preset.clone();
+            // Feature names of the preset for the joint numbers (checked here), when
+            // the sizes fit it.
+            joint_indices(a)?;
+            let spec = compnet::data::FeatureSpec::for_preset(&a.preset, &a.joints);
+            if let Some(spec) = spec.filter(|s| s.inputs.len() == i && s.targets.len() == o) {
+                m.output_names = spec.output_names();
+                m.input_names = spec.inputs;
+            }
+            Ok(m)
+        }
+    }
+}
+
+/// Exports `m` to `a.out`; returns the exported network and where its arrays live.
+pub fn export(m: &LstmModel, a: &ExportArgs) -> Result<(Exported, PlacementChoice)> {
+    let (net, placement, text) = render_export(m, a)?;
+    compnet::write_atomic(&a.out, text.as_bytes())?;
+    Ok((net, placement))
+}
+
+/// The exported network, where its arrays live, and the text of the Rust file
+/// [`export`] writes to `a.out` (after every check: the do-no-harm gate, the flash
+/// and SRAM budgets).
+pub fn render_export(m: &LstmModel, a: &ExportArgs) -> Result<(Exported, PlacementChoice, String)> {
+    let difference = m
+        .output_names
+        .iter()
+        .find(|n| compnet::data::is_shifted_difference_name(n));
+    if let Some(name) = difference {
+        bail!(
+            "the model predicts a future torque as a difference (output `{name}`, \
+             `train --paper-output increment` or `relative`): it leans on the measured \
+             torque through a residual path, and fed forward in a drive that closes a \
+             loop on the applied torque (model-export/README.md); export a network \
+             trained with `--paper-output next`, or the `drive` preset"
+        );
+    }
+    let warning = match a.model {
+        Some(_) => do_no_harm(m, a)?,
+        None => String::new(),
+    };
+    let net = Exported::new(m, a.precision).with_context(|| {
+        format!(
+            "exporting {}",
+            a.model
+                .as_ref()
+                .map_or("the seeded network".into(), |p| p.display().to_string())
+        )
+    })?;
+    if let Some(b) = &a.budgets {
+        let budget = flash_budget(b)?;
+        let bytes = net.flash_bytes();
+        if bytes as u64 > budget {
+            return Err(ExportError::TooLarge {
+                bytes,
+                budget,
+                source_file: b.display().to_string(),
+            }
+            .into());
+        }
+    }
+    let dynamics = match (&a.robot, &a.identified) {
+        (p, Some(identified)) => {
+            if !a.chain.selection()?.is_default() {
+                anyhow::bail!(
+                    "--base-link, --tip-link and --side-joint do not apply with --identified: the model file records its chain"
+                );
+            }
+            let id =
+                identify::identified::load_identified(&RobotSource::from(p.clone()), identified)?;
+            if let Some(w) = &id.warning {
+                eprintln!("warning: {w}");
+            }
+            Some(FirmwareModel::build(&id.robot, &id.standard_parameters)?)
+        }
+        (Some(p), None) => {
+            let robot = a
+                .chain
+                .load_and_warn(&RobotSource::File(p.clone()))
+                .with_context(|| format!("reading robot {}", p.display()))?;
+            Some(FirmwareModel::build(&robot, &robot.standard_parameters())?)
+        }
+        (None, _) => None,
+    };
+    let sram = a.budgets.as_deref().map(sram_budget).transpose()?;
+    let bytes = ModelBytes {
+        network: net.flash_bytes(),
+        dynamics: dynamics.as_ref().map_or(0, dynamics_bytes),
+        linear_stage: m.dims.output * firmware::features::FRICTION_FEATURES * 4,
+    };
+    let placement = choose_placement(a.weights_in, bytes, sram.map(|b| b.model_bytes()))?;
+    let meta = ExportMeta {
+        preset: m.preset.clone(),
+        joints: joint_indices(a)?,
+        control_rate_hz: a.control_rate_hz,
+        self_check_steps: a.self_check_steps,
+        placement,
+    };
+    let mut text = render(m, &net, &meta, dynamics.as_ref());
+    if !warning.is_empty() {
+        eprintln!("warning: exported anyway (--allow-worse):\n{warning}");
+        let commented: String = warning.lines().map(|l| format!("// {l}\n")).collect();
+        text = format!(
+            "// WARNING: exported with --allow-worse; the do-no-harm gate did not pass:\n{commented}{text}"
+        );
+    }
+    Ok((net, placement, text))
+}
+
+/// The do-no-harm gate of a trained network: an error listing the per-joint figures
+/// when it is worse than the model alone on any validation run and joint (or has no
+/// validation runs); with `--allow-worse`, that listing as a warning instead (empty
+/// when the gate passes). The listing names the validation runs by number only.
+fn do_no_harm(m: &LstmModel, a: &ExportArgs) -> Result<String> {
+    if a.gate_data.is_empty() {
+        if a.allow_worse {
+            return Ok(
+                "no --gate-data: the network was not checked against the model alone".into(),
+            );
+        }
+        bail!(
+            "exporting a trained network needs --gate-data VALIDATION.csv (whole runs it \
+             never trained on) for the do-no-harm gate, or --allow-worse"
+        );
+    }
+    let rows = gate(m, a)?;
+    // Runs by number (their paths go to stderr only: input never enters the file).
+    for (k, path) in a.gate_data.iter().enumerate() {
+        eprintln!("gate run {}: {}", k + 1, path.display());
+    }
+    let mut table = String::from("run | joint | model alone RMS N*m | compensated RMS N*m\n");
+    let mut worse = false;
+    for (run, joint, before, after) in &rows {
+        worse |= after.is_nan() || before.is_nan() || after > before;
+        table += &format!("{run} | {joint} | {before:.4} | {after:.4}\n");
+    }
+    eprint!("do-no-harm gate:\n{table}");
+    match (worse, a.allow_worse) {
+        (false, _) => Ok(String::new()),
+        (true, true) => Ok(table),
+        (true, false) => bail!(
+            "the network is worse than the model alone on a validation run (do-no-harm \
+             gate; --allow-worse overrides):\n{table}"
+        ),
+    }
+}
+
+/// Runs the subcommand: the Rust file and the accuracy JSON are written all or none,
+/// after the accuracy log was read and evaluated.
+pub fn run(a: ExportArgs) -> Result<()> {
+    let m = model(&a)?;
+    let (net, placement, text) = render_export(&m, &a)?;
+    let mut accuracy_json = None;
+    if let Some(log) = &a.accuracy_log {
+        let table = compnet::data::Table::read(log)?;
+        let spec = compnet::data::FeatureSpec::for_preset(&m.preset, &a.joints)
+            .with_context(|| {
+                format!(
+                    "--accuracy-log needs a `paper`, `feedforward` or `drive` model (this one: `{}`)",
+                    m.preset
+                )
+            })?;
+        spec.check_model(&m)
+            .with_context(|| format!("{}", log.display()))?;
+        let seq = spec
+            .sequence(&table)
+            .with_context(|| format!("{}", log.display()))?;
+        let rows = accuracy(&m, &seq.inputs, Some(&seq.targets))?;
+        artifacts::ensure_finite(
+            &format!("{}: accuracy", log.display()),
+            rows.iter().flat_map(|r| {
+                [r.rms_vs_f32]
+                    .into_iter()
+                    .chain(r.compensated_rms)
+                    .chain(r.f32_compensated_rms)
+            }),
+        )?;
+        println!(
+            "Accuracy on {} ({} steps, streamed from the zero state):\n",
+            log.display(),
+            seq.len()
+        );
+        print!("{}", accuracy_markdown(&rows));
+        if let Some(path) = &a.accuracy_json {
+            accuracy_json = Some((path, serde_json::to_string_pretty(&rows)?));
+        }
+    }
+    // The Rust file (a source file, 0644 like every staged output) and the accuracy
+    // JSON: all or none.
+    let mut files: Vec<(&Path, &[u8])> = vec![(&a.out, text.as_bytes())];
+    if let Some((path, json)) = &accuracy_json {
+        files.push((path.as_path(), json.as_bytes()));
+    }
+    artifacts::write_atomic_all(&files)?;
+    println!(
+        "wrote {} ({}, {} bytes of network arrays)",
+        a.out.display(),
+        a.precision.name(),
+        net.flash_bytes()
+    );
+    println!("placement: {}", placement.describe());
+    Ok(())
+}

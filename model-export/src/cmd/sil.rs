@@ -1,0 +1,163 @@
+//! `model-export sil`: the closed loop on the wrist, or the single-joint demos.
+use anyhow::{bail, ensure};
+use plant_sim::PlantParameters;
+use robot::RobotSource;
+use sil::wrist::{
+    J, ModeReport, WristFeedforward, WristJointReport, WristLstm, WristSetup,
+    identified_wrist_model, markdown_table, run_wrist,
+};
+
+/// `model-export sil` options.
+#[derive(Debug, Clone, clap::Args)]
+pub struct SilArgs {
+    /// Identified model (JSON from `identify`, joints 1-3 locked at 0): the model
+    /// feedforward. Without it: the single-joint and coupled-load demos.
+    #[arg(long)]
+    pub model: Option<std::path::PathBuf>,
+    /// Trained LSTM (safetensors from `train`, or its directory), preset `paper` or
+    /// `feedforward` on joints 4,5,6: the model + LSTM rows (f32 and int16).
+    #[arg(long, requires = "model")]
+    pub lstm: Option<std::path::PathBuf>,
+    /// Robot description (must be the one the model was identified for).
+    #[arg(long)]
+    pub robot: Option<std::path::PathBuf>,
+    /// The modelled chain of a URDF tree.
+    #[command(flatten)]
+    pub chain: crate::args::robot::ChainArgs,
+    /// Plant file (true friction, ripple, ...); default: robots/default.plant.toml.
+    #[arg(long)]
+    pub plant: Option<std::path::PathBuf>,
+    /// Reference of joints 4-6: a Fourier JSON (`excite`) or playback CSV; default the
+    /// built-in seeded trajectory (`--seeded-trajectory`).
+    #[arg(long)]
+    pub trajectory: Option<std::path::PathBuf>,
+    /// Seed of the built-in trajectory (2: `plant-report`'s test trajectory).
+    #[arg(long, default_value_t = 2)]
+    pub seeded_trajectory: u64,
+    /// Periods of a Fourier trajectory.
+    #[arg(long, default_value_t = 3)]
+    pub periods: usize,
+    /// Simulated seconds (default: the whole trajectory).
+    #[arg(long)]
+    pub seconds: Option<f64>,
+    /// Compensator rate [Hz] (the LSTM's training rate: 100).
+    #[arg(long, default_value_t = 100.0)]
+    pub compensator_hz: f64,
+    /// Sensor-noise seed.
+    #[arg(long, default_value_t = 7)]
+    pub seed: u64,
+    /// Also write the table as JSON (atomically).
+    #[arg(long)]
+    pub json: Option<std::path::PathBuf>,
+    /// Also write the table as Markdown (atomically).
+    #[arg(long)]
+    pub markdown: Option<std::path::PathBuf>,
+}
+
+/// Runs `model-export sil` on the wrist.
+pub fn run(a: &SilArgs) -> anyhow::Result<()> {
+    let Some(model_path) = &a.model else {
+        bail!("internal: the wrist SIL needs --model");
+    };
+    ensure!(
+        a.compensator_hz.is_finite() && a.compensator_hz > 0.0 && a.compensator_hz <= 20_000.0,
+        "--compensator-hz must be in (0, 20000]"
+    );
+    let source = RobotSource::from(a.robot.clone());
+    let robot = a.chain.load_and_warn(&source)?;
+    let plant = match &a.plant {
+        Some(p) => PlantParameters::load(p)?,
+        None => PlantParameters::default_robot(),
+    };
+    let traj = plant_sim::trajectory::trajectory_or_seeded(
+        a.trajectory.as_deref(),
+        a.periods,
+        a.seeded_trajectory,
+        J,
+    )?;
+    let mut setup = WristSetup::new(robot, plant, traj, a.compensator_hz, a.seed)?;
+    if let Some(s) = a.seconds {
+        ensure!(s.is_finite() && s > 0.0, "--seconds must be > 0");
+        setup.duration_s = s.min(setup.duration_s);
+    }
+    let model = identified_wrist_model(&source, model_path, &a.chain.selection()?)?;
+    let lstm = a.lstm.as_deref().map(WristLstm::load).transpose()?;
+    let modes: Vec<WristFeedforward> = WristFeedforward::ALL
+        .into_iter()
+        .filter(|m| {
+            lstm.is_some()
+                || !matches!(
+                    m,
+                    WristFeedforward::ModelLstmF32 | WristFeedforward::ModelLstmInt16
+                )
+        })
+        .collect();
+    // The runs are independent: one thread each.
+    let results: Vec<anyhow::Result<[WristJointReport; J]>> = std::thread::scope(|sc| {
+        let hs: Vec<_> = modes
+            .iter()
+            .map(|&m| {
+                let (setup, model, lstm) = (&setup, &model, lstm.as_ref());
+                sc.spawn(move || run_wrist(setup, m, Some(model), lstm))
+            })
+            .collect();
+        hs.into_iter()
+            .map(|h| {
+                h.join()
+                    .unwrap_or_else(|_| Err(anyhow::anyhow!("SIL thread panicked")))
+            })
+            .collect()
+    });
+    let mut reports = Vec::new();
+    for (m, r) in modes.iter().zip(results) {
+        reports.push(ModeReport {
+            feedforward: m.name().to_string(),
+            joints: r?.to_vec(),
+        });
+    }
+    let title = format!(
+        "wrist SIL: joints 4-6 of {} (1-3 locked at 0), true plant {:?}; {:.1} s at 20 kHz PWM, outer loops 5 kHz, compensator {} Hz, bus latency 1 tick, seed {}; model {}{}",
+        source,
+        setup.effects,
+        setup.duration_s,
+        a.compensator_hz,
+        a.seed,
+        model_path.display(),
+        a.lstm
+            .as_ref()
+            .map(|p| format!(
+                ", LSTM {} (preset {:?})",
+                p.display(),
+                lstm.as_ref().map(|l| l.preset)
+            ))
+            .unwrap_or_default()
+    );
+    artifacts::ensure_finite(
+        "the wrist SIL results",
+        reports
+            .iter()
+            .flat_map(|r| &r.joints)
+            .flat_map(|j| [j.rms_error_rad, j.max_error_rad, j.rms_iq_a]),
+    )?;
+    let md = format!("{title}\n\n{}", markdown_table(&reports));
+    print!("{md}");
+    let json = match &a.json {
+        Some(_) => Some(serde_json::to_string_pretty(&serde_json::json!({
+            "title": title,
+            "duration_s": setup.duration_s,
+            "compensator_hz": a.compensator_hz,
+            "seed": a.seed,
+            "results": reports,
+        }))?),
+        None => None,
+    };
+    // The Markdown and the JSON table: both or neither.
+    let files: Vec<(&std::path::Path, &[u8])> = [
+        a.markdown.as_deref().map(|p| (p, md.as_bytes())),
+        a.json.as_deref().zip(json.as_deref().map(str::as_bytes)),
+    ]
+    .into_iter()
+    .flatten()
+    .collect();
+    artifacts::write_atomic_all(&files)
+}

@@ -1,0 +1,241 @@
+//! `model-export train`: fit the compensation network on logs.
+use anyhow::{Context, Result};
+use clap::Args;
+use compnet::data::{FeatureSpec, Sequence, Table};
+use compnet::{eval, io, plot, train};
+use std::path::{Path, PathBuf};
+
+/// Which columns the network reads and predicts.
+#[derive(Debug, Args)]
+pub struct FeatureArgs {
+    /// Feature preset: `paper` (tau_model, tau_meas, q of each joint -> next-step tau_meas),
+    /// `feedforward` (tau_model, q, qd -> tau_meas - tau_model) or `custom` (--inputs/--targets).
+    #[arg(long, default_value = "paper")]
+    pub preset: String,
+    /// Joints for the presets (columns `q_j4`, `qd_j4`, `tau_meas_j4`, `tau_model_j4`, ...).
+    #[arg(long, value_delimiter = ',', default_value = "4,5,6")]
+    pub joints: Vec<usize>,
+    /// `custom`: input columns.
+    #[arg(long, value_delimiter = ',')]
+    pub inputs: Vec<String>,
+    /// `custom`: target columns, each `col` or `col-col` (a difference).
+    #[arg(long, value_delimiter = ',')]
+    pub targets: Vec<String>,
+    /// `custom`: steps ahead the targets are taken.
+    #[arg(long, default_value_t = 0)]
+    pub shift: usize,
+    /// `paper`: how the network's output gives the next-step torque: `next` (the torque
+    /// itself, the paper's form and the one a drive can feed forward) or `increment`
+    /// (the measured torque now plus the output: beats persistence in open loop, but fed
+    /// forward it closes a unit-gain loop on the applied torque; not exportable).
+    #[arg(long, value_enum, default_value_t = PaperOutput::Next)]
+    pub paper_output: PaperOutput,
+}
+
+/// How a `paper` network's output gives the next-step torque.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum PaperOutput {
+    /// The next-step torque itself.
+    Next,
+    /// The increment over the measured torque now.
+    Increment,
+    /// The residual over the model's torque at the next step.
+    Relative,
+}
+
+impl FeatureArgs {
+    /// The feature specification these options choose.
+    pub fn spec(&self) -> Result<FeatureSpec> {
+        match self.preset.as_str() {
+            "paper" if self.paper_output == PaperOutput::Increment => {
+                Ok(FeatureSpec::paper_increment(&self.joints))
+            }
+            "paper" if self.paper_output == PaperOutput::Relative => {
+                Ok(FeatureSpec::paper_relative(&self.joints))
+            }
+            "custom" => FeatureSpec::custom(&self.inputs, &self.targets, self.shift),
+            other => FeatureSpec::for_preset(other, &self.joints).with_context(|| {
+                format!("unknown preset `{other}` (paper, feedforward, drive, custom)")
+            }),
+        }
+    }
+}
+
+/// `train` options.
+#[derive(Debug, Args)]
+pub struct TrainArgs {
+    /// CSV logs (repeat or comma-separate); windows never cross files.
+    #[arg(long, required = true, value_delimiter = ',')]
+    pub data: Vec<PathBuf>,
+    /// Validation logs, used whole (early stopping and learning-rate choice on runs the
+    /// network never trains on); without them, the `--val-fraction` block of each
+    /// training log validates.
+    #[arg(long, value_delimiter = ',')]
+    pub validation_data: Vec<PathBuf>,
+    /// Features.
+    #[command(flatten)]
+    pub features: FeatureArgs,
+    /// Output model (safetensors, PyTorch names).
+    #[arg(long, default_value = "lstm.safetensors")]
+    pub out: PathBuf,
+    /// Loss curve (SVG).
+    #[arg(long, default_value = "loss.svg")]
+    pub loss_plot: PathBuf,
+    /// Report (JSON) with the per-output figures on the test blocks.
+    #[arg(long)]
+    pub report: Option<PathBuf>,
+    /// Input-layer width.
+    #[arg(long, default_value_t = 64)]
+    pub embed: usize,
+    /// LSTM cells.
+    #[arg(long, default_value_t = 64)]
+    pub hidden: usize,
+    /// Window length (steps in the loss).
+    #[arg(long, default_value_t = 100)]
+    pub window: usize,
+    /// Burn-in steps before each window (seen, not in the loss).
+    #[arg(long, default_value_t = 50)]
+    pub burn_in: usize,
+    /// Windows per batch.
+    #[arg(long, default_value_t = 50)]
+    pub batch: usize,
+    /// Learning rate (the paper: 0.05); default: chosen by validation among 0.05, 0.01, 0.003, 0.001.
+    #[arg(long)]
+    pub lr: Option<f64>,
+    /// Maximum epochs.
+    #[arg(long, default_value_t = 200)]
+    pub epochs: usize,
+    /// Early stopping patience (epochs).
+    #[arg(long, default_value_t = 20)]
+    pub patience: usize,
+    /// Gradient-norm clip (0: off).
+    #[arg(long, default_value_t = 1.0)]
+    pub clip: f64,
+    /// Validation fraction of each file.
+    #[arg(long, default_value_t = 0.15)]
+    pub val_fraction: f64,
+    /// Test fraction of each file (its end).
+    #[arg(long, default_value_t = 0.15)]
+    pub test_fraction: f64,
+    /// Random seed.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// No progress bar.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+pub(crate) fn load(paths: &[PathBuf], spec: &FeatureSpec) -> Result<Vec<Sequence>> {
+    paths
+        .iter()
+        .map(|p| spec.sequence(&Table::read(p)?))
+        .collect()
+}
+
+/// Runs `train`.
+pub fn run(a: TrainArgs) -> Result<()> {
+    let spec = a.features.spec()?;
+    let cfg = train::TrainConfig {
+        embed: a.embed,
+        hidden: a.hidden,
+        window: a.window,
+        burn_in: a.burn_in,
+        batch: a.batch,
+        lr: a.lr,
+        epochs: a.epochs,
+        patience: a.patience,
+        clip_norm: a.clip,
+        val_fraction: a.val_fraction,
+        test_fraction: a.test_fraction,
+        seed: a.seed,
+        progress: !a.quiet,
+        ..Default::default()
+    };
+    let mut tr = Vec::new();
+    let mut va = Vec::new();
+    let mut te = Vec::new();
+    let held_out = !a.validation_data.is_empty();
+    for s in load(&a.data, &spec)? {
+        let val_fraction = if held_out { 0.0 } else { cfg.val_fraction };
+        let (x, y, z) = s.split(val_fraction, cfg.test_fraction)?;
+        tr.push(x);
+        if !held_out {
+            va.push(y);
+        }
+        te.push(z);
+    }
+    va.extend(load(&a.validation_data, &spec)?);
+    // The `drive` preset's linear stage first (least squares on the training steps); the
+    // network then learns what it leaves. The test blocks keep the whole targets.
+    let linear = if spec.preset == "drive" {
+        let w = train::fit_linear_stage(&tr, spec.targets.len())?;
+        train::subtract_linear_stage(&w, &mut tr);
+        train::subtract_linear_stage(&w, &mut va);
+        w
+    } else {
+        Vec::new()
+    };
+    let all_train = Sequence {
+        inputs: tr.iter().flat_map(|s| s.inputs.clone()).collect(),
+        targets: tr.iter().flat_map(|s| s.targets.clone()).collect(),
+        ..Default::default()
+    };
+    let init = train::new_model(
+        &all_train,
+        spec.inputs.clone(),
+        spec.output_names(),
+        &spec.preset,
+        &cfg,
+    )?;
+    let val: Vec<&Sequence> = va.iter().collect();
+    let (mut model, hist) = train::train(&init, &tr.iter().collect::<Vec<_>>(), &val, &cfg)?;
+    // Only on whole held-out runs: a block of the training runs would not tell.
+    let gains = if held_out {
+        train::shrink_residual_outputs(&mut model, &val)?
+    } else {
+        vec![1.0; model.dims.output]
+    };
+    if gains.iter().any(|&g| g != 1.0) {
+        println!("output gains on the validation runs (do-no-harm shrinkage): {gains:?}");
+    }
+    model.linear = linear;
+    let model_bytes = io::model_bytes(&model)?;
+    let loss_svg = plot::loss_curve_svg(&hist)?;
+    println!(
+        "learning rate {} (trials: {:?}); best epoch {} of {}",
+        hist.lr,
+        hist.lr_trials,
+        hist.best_epoch + 1,
+        hist.train.len()
+    );
+    let mut reports = Vec::new();
+    for (p, t) in a.data.iter().zip(&te) {
+        let rows = eval::evaluate(&model, t)?;
+        println!(
+            "\n{} (test block, {} steps, streamed):\n{}",
+            p.display(),
+            t.len(),
+            eval::markdown(&rows)
+        );
+        reports.push(
+            serde_json::json!({"file": p.display().to_string(), "steps": t.len(), "outputs": rows}),
+        );
+    }
+    let report = match &a.report {
+        Some(_) => {
+            let j = serde_json::json!({"preset": spec.preset, "lr": hist.lr, "lr_trials": hist.lr_trials,
+                "epochs": hist.train.len(), "best_epoch": hist.best_epoch + 1, "output_gains": gains, "train_loss": hist.train, "val_loss": hist.val, "test": reports});
+            Some(serde_json::to_string_pretty(&j)?)
+        }
+        None => None,
+    };
+    // The model, the plot and the report: all three or none.
+    let mut files: Vec<(&Path, &[u8])> =
+        vec![(&a.out, &model_bytes), (&a.loss_plot, loss_svg.as_bytes())];
+    if let (Some(path), Some(text)) = (&a.report, &report) {
+        files.push((path, text.as_bytes()));
+    }
+    artifacts::write_atomic_all(&files)?;
+    println!("wrote {} and {}", a.out.display(), a.loss_plot.display());
+    Ok(())
+}
