@@ -176,7 +176,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Simulate(args) => crate::cmd::simulate::run_simulate(&args),
         Command::PlantReport(args) => crate::cmd::simulate::run_plant_report(&args),
         Command::Export(a) => crate::cmd::export::run(a),
-        Command::Demo(a) => crate::cmd::demo::demo(&a),
+        Command::Demo(a) => crate::cmd::demo::demo(&a, &mut crate::cmd::demo::WithoutCargo),
     }
 }
 

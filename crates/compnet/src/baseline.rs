@@ -25,7 +25,7 @@ pub const FEATURE_NAMES: [&str; N_FEATURES] = features::FRICTION_FEATURE_NAMES;
 const RCOND: f64 = 1e-10;
 
 /// A fitted baseline: per joint, coefficients of [`FEATURE_NAMES`] (N·m per feature unit).
-#[derive(Clone, Debug, serde::Serialize)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct LinearBaseline {
     /// Robot joint numbers (1-based, as in `tau_meas_jN`), in coefficient order.
     pub joints: Vec<usize>,

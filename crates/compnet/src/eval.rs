@@ -3,10 +3,10 @@ use super::baseline::LinearBaseline;
 use super::data::{FeatureSpec, Sequence, Table};
 use super::model::LstmModel;
 use anyhow::{Result, bail};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 /// Figures for one output (one joint).
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct TargetEval {
     /// Output name.
     pub name: String,
@@ -80,7 +80,7 @@ pub fn markdown(rows: &[TargetEval]) -> String {
 }
 
 /// One output's figures in the `evaluate` report: [`TargetEval`] plus rows and baseline.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct ReportRow {
     /// The network's figures.
     #[serde(flatten)]

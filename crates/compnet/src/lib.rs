@@ -12,6 +12,7 @@ pub mod io;
 pub mod model;
 pub mod onnx;
 pub mod plot;
+pub mod report;
 pub mod train;
 
 pub use model::{LstmModel, Net, Streamer};

@@ -1464,10 +1464,10 @@ pub fn render(
 }
 
 /// One precision's accuracy on one output.
-#[derive(Clone, Debug, serde::Serialize)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct AccuracyRow {
     /// Precision name (`f32`, `int16`, `int8`).
-    pub precision: &'static str,
+    pub precision: String,
     /// Output name.
     pub output: String,
     /// RMS of the precision's streamed output against the f32 firmware step.
@@ -1500,7 +1500,7 @@ pub fn accuracy(
         let y = Exported::new(m, p)?.stream(inputs);
         for j in 0..m.dims.output {
             rows.push(AccuracyRow {
-                precision: p.name(),
+                precision: p.name().to_string(),
                 output: m.output_names[j].clone(),
                 rms_vs_f32: rms(&y, &reference, j),
                 compensated_rms: targets.map(|t| rms(&y, t, j)),

@@ -1,7 +1,7 @@
 //! Commanded trajectories the simulated robot follows: the excitation designer's Fourier
 //! coefficients (JSON) or a playback CSV (`t`, then `q`, `qd`, `qdd` of each joint).
 use anyhow::{Context, bail, ensure};
-use excitation::trajectory::{ExcitationTrajectory, JointFourier};
+use excitation::trajectory::ExcitationTrajectory;
 use std::path::Path;
 
 /// A trajectory given as samples; evaluated between samples by quintic Hermite
@@ -269,6 +269,7 @@ fn find_fourier(v: &serde_json::Value) -> Option<ExcitationTrajectory> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use excitation::trajectory::JointFourier;
 
     fn series() -> ExcitationTrajectory {
         ExcitationTrajectory {

@@ -332,7 +332,7 @@ impl WristSetup {
 }
 
 /// Per-joint results of a wrist run.
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct WristJointReport {
     /// Robot joint (1-based).
     pub joint: usize,
@@ -717,7 +717,7 @@ pub fn run_wrist(
 }
 
 /// One mode's results.
-#[derive(Clone, Debug, serde::Serialize)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct ModeReport {
     /// Feedforward.
     pub feedforward: String,

@@ -12,10 +12,15 @@
 use crate::cli::{Cli, run};
 use anyhow::{Context, Result, bail};
 use clap::Parser;
+use compnet::report::{EvaluationReport, TrainReport};
+use excitation::output::ExcitationFile;
+use fw_export::AccuracyRow;
+use identify::model_file::ModelFile;
+use serde::Serialize;
 use serde_json::{Value, json};
+use sil::wrist::ModeReport;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
-use std::process::Command;
 use std::time::Instant;
 
 /// `model-export demo`.
@@ -32,10 +37,10 @@ pub struct DemoArgs {
     /// thumbv7em-none-eabihf and the QEMU budget run).
     #[arg(long)]
     pub no_firmware: bool,
-    /// Also copy the exported model to `firmware/src/model/default_model.rs`, the
-    /// committed default the firmware builds with.
+    /// The board's budget file (`host-tests/budgets.toml`): `export` places the model's
+    /// arrays in SRAM where they fit it (the xtask passes it).
     #[arg(long)]
-    pub install: bool,
+    pub budgets: Option<PathBuf>,
 }
 
 /// What differs between the full and the fast variant.
@@ -92,7 +97,7 @@ const FAST: Variant = Variant {
 const DEMO_LR: &str = "0.003";
 
 /// One executed stage: its command line and wall time.
-#[derive(Clone, Debug, serde::Serialize)]
+#[derive(Clone, Debug, Serialize)]
 struct StageRecord {
     stage: String,
     command: String,
@@ -101,7 +106,7 @@ struct StageRecord {
 }
 
 /// Runs the stages in order and keeps their records.
-struct Pipeline {
+pub struct Pipeline {
     records: Vec<StageRecord>,
 }
 
@@ -127,67 +132,16 @@ impl Pipeline {
         result
     }
 
-    /// Runs a cargo command in the workspace (`FIRMWARE_MODEL` set to `model`).
-    fn cargo(&mut self, stage: &str, args: &[&str], model: &Path) -> Result<String> {
-        self.cargo_with(stage, args, model, false)
-    }
-
-    /// [`Pipeline::cargo`]; with `over_budget_ok`, exit code 1 (the budget tool's
-    /// "over budget": its table names each overrun) is recorded as a finding of the
-    /// stage instead of a failure, and the output kept for the report.
-    fn cargo_with(
-        &mut self,
-        stage: &str,
-        args: &[&str],
-        model: &Path,
-        over_budget_ok: bool,
-    ) -> Result<String> {
-        let command = format!(
-            "FIRMWARE_MODEL={} cargo {}",
-            model.display(),
-            args.join(" ")
-        );
-        println!("\n==> [{stage}] {command}");
-        let t0 = Instant::now();
-        let spinner = stage_spinner(stage);
-        let out = Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()))
-            .current_dir(workspace_root())
-            .args(args)
-            .env("FIRMWARE_MODEL", model)
-            .stderr(std::process::Stdio::inherit())
-            .output()
-            .with_context(|| format!("stage {stage}: running cargo"));
-        spinner.finish_and_clear();
-        let over_budget = over_budget_ok
-            && out
-                .as_ref()
-                .is_ok_and(|o| o.status.code() == Some(1) && !o.stdout.is_empty());
-        let result = match out {
-            Ok(o) if o.status.success() || over_budget => {
-                Ok(String::from_utf8_lossy(&o.stdout).into_owned())
-            }
-            Ok(o) => Err(anyhow::anyhow!(
-                "stage {stage}: cargo {} failed ({}):\n{}",
-                args.join(" "),
-                o.status,
-                String::from_utf8_lossy(&o.stdout)
-            )),
-            Err(e) => Err(e),
-        };
-        self.record(
-            stage,
-            command,
-            t0,
-            result.as_ref().map(|_| ()).map_err(|e| format!("{e:#}")),
-        )?;
-        if over_budget && let Some(r) = self.records.last_mut() {
-            r.status = "over budget (see the budget table)".to_string();
-            println!("    [{stage}] over budget: the budget table names each overrun");
+    /// Replaces the status of the last stage recorded (a finding rather than a failure).
+    pub fn set_last_status(&mut self, status: &str) {
+        if let Some(r) = self.records.last_mut() {
+            r.status = status.to_string();
         }
-        result
     }
 
-    fn record(
+    /// Records a stage that ran outside `model-export` (its command line, the time since
+    /// `t0`, and its outcome).
+    pub fn record(
         &mut self,
         stage: &str,
         command: String,
@@ -211,7 +165,7 @@ impl Pipeline {
 }
 
 /// A spinner with the stage's name and elapsed time while it runs (on a terminal).
-fn stage_spinner(stage: &str) -> indicatif::ProgressBar {
+pub fn stage_spinner(stage: &str) -> indicatif::ProgressBar {
     let bar = indicatif::ProgressBar::new_spinner().with_message(format!("demo: {stage}"));
     if let Ok(style) =
         indicatif::ProgressStyle::with_template("{spinner} [{elapsed_precise}] {msg}")
@@ -220,14 +174,6 @@ fn stage_spinner(stage: &str) -> indicatif::ProgressBar {
     }
     bar.enable_steady_tick(std::time::Duration::from_millis(200));
     bar
-}
-
-/// The workspace root (the demo drives cargo there for the firmware stages).
-fn workspace_root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .parent()
-        .map(Path::to_path_buf)
-        .unwrap_or_else(|| PathBuf::from("."))
 }
 
 /// Arguments joined for display (quoted where a shell would need it).
@@ -259,7 +205,27 @@ fn read_json(path: &Path) -> Result<Value> {
 }
 
 /// Runs the demo.
-pub fn demo(a: &DemoArgs) -> Result<()> {
+/// The stages that need cargo: building the board firmware with the exported model and the
+/// size and cycle budget run. The xtask runs them; `model-export demo` alone cannot.
+pub trait FirmwareStages {
+    /// Builds the board firmware with `model` compiled in and runs the budget; returns the
+    /// budget table (Markdown) after writing `firmware/budget.{md,json}` under `out`.
+    fn run(&mut self, pipeline: &mut Pipeline, model: &Path, out: &Path) -> Result<Option<String>>;
+}
+
+/// The firmware stages when `model-export demo` runs alone: they need cargo, so they are
+/// reported as skipped and left to `cargo xtask demo`.
+pub struct WithoutCargo;
+
+impl FirmwareStages for WithoutCargo {
+    fn run(&mut self, _: &mut Pipeline, _: &Path, _: &Path) -> Result<Option<String>> {
+        println!("\n(firmware build and budget run: `cargo xtask demo` runs them)");
+        Ok(None)
+    }
+}
+
+/// Runs the demo; `firmware` runs the stages that need cargo (unless `--no-firmware`).
+pub fn demo(a: &DemoArgs, firmware: &mut dyn FirmwareStages) -> Result<()> {
     let v = if a.fast { FAST } else { FULL };
     let t_start = Instant::now();
     let out = &a.out;
@@ -483,8 +449,6 @@ pub fn demo(a: &DemoArgs) -> Result<()> {
         s("4,5,6"),
         s("--precision"),
         s("int16"),
-        s("--budgets"),
-        p(&workspace_root().join("host-tests/budgets.toml")),
         s("--out"),
         p(&fw_model),
         s("--accuracy-log"),
@@ -497,13 +461,10 @@ pub fn demo(a: &DemoArgs) -> Result<()> {
     if v.allow_worse_export {
         export_args.push(s("--allow-worse"));
     }
-    pl.stage("export", &export_args)?;
-    if a.install {
-        let dst = workspace_root().join("firmware/src/model/default_model.rs");
-        std::fs::copy(&fw_model, &dst)
-            .with_context(|| format!("copying {} to {}", fw_model.display(), dst.display()))?;
-        println!("installed {} as {}", fw_model.display(), dst.display());
+    if let Some(b) = &a.budgets {
+        export_args.extend([s("--budgets"), p(b)]);
     }
+    pl.stage("export", &export_args)?;
 
     // 8. Closed loop: the wrist in the loop on the true plant, the firmware's drives
     //    and compensators, along the test trajectory.
@@ -528,54 +489,13 @@ pub fn demo(a: &DemoArgs) -> Result<()> {
         ],
     )?;
 
-    // 9. Firmware build for the board and the size / cycle budget run.
-    let fw_model_abs = std::fs::canonicalize(&fw_model)
-        .with_context(|| format!("resolving {}", fw_model.display()))?;
+    // 9. Firmware build for the board and the size / cycle budget run (they need cargo:
+    //    the xtask runs them).
     let budget = if a.no_firmware {
         println!("\n(firmware build and budget run skipped: --no-firmware)");
         None
     } else {
-        pl.cargo(
-            "firmware build",
-            &[
-                "build",
-                "--release",
-                "--target",
-                "thumbv7em-none-eabihf",
-                "-p",
-                "firmware",
-                "--bin",
-                "board",
-                "--features",
-                "board",
-                "--target-dir",
-                "target/demo",
-            ],
-            &fw_model_abs,
-        )?;
-        let json_file = std::path::absolute(out.join("firmware").join("budget.json"))
-            .context("resolving the report folder")?;
-        let markdown = pl.cargo_with(
-            "budget",
-            &[
-                "run",
-                "--quiet",
-                "--target-dir",
-                "target/demo",
-                "-p",
-                "host-tests",
-                "--bin",
-                "budget",
-                "--",
-                "--json-file",
-                &p(&json_file),
-            ],
-            &fw_model_abs,
-            true,
-        )?;
-        compnet::write_atomic(&out.join("firmware").join("budget.md"), markdown.as_bytes())?;
-        read_json(&json_file)?; // the budget run wrote valid JSON
-        Some(markdown)
+        firmware.run(&mut pl, &fw_model, out)?
     };
 
     // 10. Report.
@@ -595,6 +515,52 @@ pub fn demo(a: &DemoArgs) -> Result<()> {
     Ok(())
 }
 
+/// One network's figures on one joint in the demo's report [N·m, %].
+#[derive(Clone, Copy, Debug, Serialize)]
+struct Compensation {
+    uncompensated_nm: f64,
+    compensated_nm: f64,
+    reduction_pct: f64,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    persistence_nm: Option<f64>,
+}
+
+impl Compensation {
+    fn of(e: &compnet::eval::TargetEval) -> Self {
+        Self {
+            uncompensated_nm: e.rms_before,
+            compensated_nm: e.rms_after,
+            reduction_pct: e.reduction_pct,
+            persistence_nm: e.rms_persistence,
+        }
+    }
+}
+
+/// One joint of Table 2: the paper's figures and our two forms of the network.
+#[derive(Clone, Debug, Serialize)]
+struct Table2Row {
+    joint: usize,
+    paper: Compensation,
+    ours: Compensation,
+    ours_increment: Compensation,
+}
+
+/// One joint of the `feedforward` preset's table.
+#[derive(Clone, Debug, Serialize)]
+struct JointCompensation {
+    joint: usize,
+    #[serde(flatten)]
+    compensation: Compensation,
+}
+
+/// A stage's JSON report, read with the type its writer used.
+fn read_report<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T> {
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+    serde_json::from_str(&text)
+        .with_context(|| format!("{}: not the expected report", path.display()))
+}
+
 /// The report's Markdown, JSON and terminal summary.
 struct Report {
     markdown: String,
@@ -610,25 +576,28 @@ impl Report {
         budget: Option<&String>,
         total_s: f64,
     ) -> Result<Self> {
-        let excite_train = read_json(&out.join("excite/train.json"))?;
-        let excite_test = read_json(&out.join("excite/test.json"))?;
-        let identified = read_json(&out.join("model/identified.json"))?;
-        let train = read_json(&out.join("model/train_paper.json"))?;
-        let evaluate = read_json(&out.join("model/evaluate_paper.json"))?;
-        let evaluate_inc = read_json(&out.join("model/evaluate_paper_increment.json"))?;
-        let evaluate_ff = read_json(&out.join("model/evaluate_feedforward.json"))?;
+        let excite_train: ExcitationFile = read_report(&out.join("excite/train.json"))?;
+        let excite_test: ExcitationFile = read_report(&out.join("excite/test.json"))?;
+        let identified = ModelFile::read(&out.join("model/identified.json"))?;
+        let train: TrainReport = read_report(&out.join("model/train_paper.json"))?;
+        let evaluate: EvaluationReport = read_report(&out.join("model/evaluate_paper.json"))?;
+        let evaluate_inc: EvaluationReport =
+            read_report(&out.join("model/evaluate_paper_increment.json"))?;
+        let evaluate_ff: EvaluationReport =
+            read_report(&out.join("model/evaluate_feedforward.json"))?;
         let sil_md = std::fs::read_to_string(out.join("sil/sil.md"))
             .with_context(|| format!("reading {}", out.join("sil/sil.md").display()))?;
-        let sil_json = read_json(&out.join("sil/sil.json"))?;
-        let accuracy = read_json(&out.join("model/accuracy.json"))?;
-        let outputs = |e: &Value| {
-            e["data"][0]["outputs"]
-                .as_array()
-                .cloned()
-                .unwrap_or_default()
+        let sil_json: Vec<ModeReport> = read_report(&out.join("sil/sil.json"))?;
+        let accuracy: Vec<AccuracyRow> = read_report(&out.join("model/accuracy.json"))?;
+        let first_run = |e: &EvaluationReport, name: &str| {
+            e.data
+                .first()
+                .map(|r| r.outputs.clone())
+                .with_context(|| format!("{name}: no evaluated run"))
         };
-        let rows = outputs(&evaluate);
-        let rows_inc = outputs(&evaluate_inc);
+        let rows = first_run(&evaluate, "evaluate_paper.json")?;
+        let rows_inc = first_run(&evaluate_inc, "evaluate_paper_increment.json")?;
+        let rows_ff = first_run(&evaluate_ff, "evaluate_feedforward.json")?;
 
         let mut md = String::new();
         let _ = writeln!(md, "# Torque compensation on the default robot: results\n");
@@ -653,7 +622,7 @@ impl Report {
             "5-harmonic Fourier series, period {:.1} s, rest to rest, optimised for the condition \
              number of the base-parameter observation matrix under the joints' position, velocity \
              and acceleration limits.\n",
-            2.0 * std::f64::consts::PI / excite_train["omega_rad_s"].as_f64().unwrap_or(f64::NAN)
+            2.0 * std::f64::consts::PI / excite_train.omega_rad_s
         );
         let _ = writeln!(
             md,
@@ -666,8 +635,7 @@ impl Report {
             let _ = writeln!(
                 md,
                 "| {name} | {:.2} | {} |",
-                e["score"]["condition"].as_f64().unwrap_or(f64::NAN),
-                e["evaluations"]
+                e.score.condition, e.evaluations
             );
         }
         let _ = writeln!(
@@ -679,26 +647,16 @@ impl Report {
         let _ = writeln!(
             md,
             "Least squares on the training run: {} base parameters, condition number {:.1}.\n",
-            identified["base_parameters"].as_array().map_or(0, Vec::len),
-            identified["condition_number"].as_f64().unwrap_or(f64::NAN)
+            identified.base_parameters.len(),
+            identified.condition_number
         );
         let _ = writeln!(
             md,
             "| data | joint 4 RMS [N m] | joint 5 | joint 6 |\n|---|---:|---:|---:|"
         );
-        for e in identified["errors"].as_array().into_iter().flatten() {
-            let r: Vec<String> = e["rms_nm"]
-                .as_array()
-                .into_iter()
-                .flatten()
-                .map(|x| format!("{:.3}", x.as_f64().unwrap_or(f64::NAN)))
-                .collect();
-            let _ = writeln!(
-                md,
-                "| {} | {} |",
-                e["data"].as_str().unwrap_or("?"),
-                r.join(" | ")
-            );
+        for e in &identified.errors {
+            let r: Vec<String> = e.rms_nm.iter().map(|x| format!("{x:.3}")).collect();
+            let _ = writeln!(md, "| {} | {} |", e.data, r.join(" | "));
         }
 
         let _ = writeln!(
@@ -726,26 +684,28 @@ impl Report {
         for (((joint, pu, pc, pr), r), ri) in
             compnet::eval::PAPER_TABLE2.iter().zip(&rows).zip(&rows_inc)
         {
-            let f = |k: &str| r[k].as_f64().unwrap_or(f64::NAN);
-            let fi = |k: &str| ri[k].as_f64().unwrap_or(f64::NAN);
+            let (ours, inc) = (Compensation::of(&r.eval), Compensation::of(&ri.eval));
             let _ = writeln!(
                 md,
                 "| {joint} | {pu:.2} | {pc:.2} | {pr:.1} | {:.3} | {:.3} | {:.1} | {:.3} | {:.1} | {:.3} |",
-                f("rms_before"),
-                f("rms_after"),
-                f("reduction_pct"),
-                fi("rms_after"),
-                fi("reduction_pct"),
-                f("rms_persistence")
+                ours.uncompensated_nm,
+                ours.compensated_nm,
+                ours.reduction_pct,
+                inc.compensated_nm,
+                inc.reduction_pct,
+                ours.persistence_nm.unwrap_or(f64::NAN)
             );
-            table2.push(json!({
-                "joint": joint,
-                "paper": {"uncompensated_nm": pu, "compensated_nm": pc, "reduction_pct": pr},
-                "ours": {"uncompensated_nm": f("rms_before"), "compensated_nm": f("rms_after"),
-                         "reduction_pct": f("reduction_pct"), "persistence_nm": f("rms_persistence")},
-                "ours_increment": {"uncompensated_nm": fi("rms_before"), "compensated_nm": fi("rms_after"),
-                         "reduction_pct": fi("reduction_pct"), "persistence_nm": fi("rms_persistence")},
-            }));
+            table2.push(Table2Row {
+                joint: *joint,
+                paper: Compensation {
+                    uncompensated_nm: *pu,
+                    compensated_nm: *pc,
+                    reduction_pct: *pr,
+                    persistence_nm: None,
+                },
+                ours,
+                ours_increment: inc,
+            });
         }
         let _ = writeln!(
             md,
@@ -753,9 +713,7 @@ impl Report {
              ![Figure 10: loss](figures/fig10_loss.svg)\n\n\
              ![Figure 12: before compensation](figures/fig12_before.svg)\n\n\
              ![Figure 13: after compensation](figures/fig13_after.svg)\n",
-            train["lr"],
-            train["best_epoch"].as_u64().map_or(0, |e| e + 1),
-            train["epochs"]
+            train.lr, train.best_epoch, train.epochs
         );
 
         let _ = writeln!(
@@ -769,23 +727,23 @@ impl Report {
             "| joint | uncompensated | compensated | reduction % |\n|---|---:|---:|---:|"
         );
         let mut feedforward = Vec::new();
-        for (k, r) in evaluate_ff["data"][0]["outputs"]
-            .as_array()
-            .into_iter()
-            .flatten()
-            .enumerate()
-        {
-            let f = |key: &str| r[key].as_f64().unwrap_or(f64::NAN);
+        for (k, r) in rows_ff.iter().enumerate() {
+            let c = Compensation::of(&r.eval);
             let _ = writeln!(
                 md,
                 "| {} | {:.3} | {:.3} | {:.1} |",
                 k + 4,
-                f("rms_before"),
-                f("rms_after"),
-                f("reduction_pct")
+                c.uncompensated_nm,
+                c.compensated_nm,
+                c.reduction_pct
             );
-            feedforward.push(json!({"joint": k + 4, "uncompensated_nm": f("rms_before"),
-                "compensated_nm": f("rms_after"), "reduction_pct": f("reduction_pct")}));
+            feedforward.push(JointCompensation {
+                joint: k + 4,
+                compensation: Compensation {
+                    persistence_nm: None,
+                    ..c
+                },
+            });
         }
         md.push('\n');
 
@@ -797,14 +755,16 @@ impl Report {
             md,
             "| precision | output | compensated RMS [N m] | f32 compensated RMS | ratio |\n|---|---|---:|---:|---:|"
         );
-        for r in accuracy.as_array().into_iter().flatten() {
-            let c = r["compensated_rms"].as_f64().unwrap_or(f64::NAN);
-            let f = r["f32_compensated_rms"].as_f64().unwrap_or(f64::NAN);
+        for r in &accuracy {
+            let (c, f) = (
+                r.compensated_rms.unwrap_or(f64::NAN),
+                r.f32_compensated_rms.unwrap_or(f64::NAN),
+            );
             let _ = writeln!(
                 md,
                 "| {} | {} | {c:.4} | {f:.4} | {:.4} |",
-                r["precision"].as_str().unwrap_or("?"),
-                r["output"].as_str().unwrap_or("?"),
+                r.precision,
+                r.output,
                 c / f
             );
         }
@@ -860,18 +820,17 @@ impl Report {
             "persistence"
         );
         for t in &table2 {
-            let (o, i) = (&t["ours"], &t["ours_increment"]);
-            let g = |v: &Value, k: &str| v[k].as_f64().unwrap_or(f64::NAN);
+            let (o, i) = (&t.ours, &t.ours_increment);
             let _ = writeln!(
                 summary,
                 "{:<6} {:>14.3} {:>16.3} {:>12.1} {:>16.3} {:>12.1} {:>12.3}",
-                t["joint"],
-                g(o, "uncompensated_nm"),
-                g(o, "compensated_nm"),
-                g(o, "reduction_pct"),
-                g(i, "compensated_nm"),
-                g(i, "reduction_pct"),
-                g(o, "persistence_nm")
+                t.joint,
+                o.uncompensated_nm,
+                o.compensated_nm,
+                o.reduction_pct,
+                i.compensated_nm,
+                i.reduction_pct,
+                o.persistence_nm.unwrap_or(f64::NAN)
             );
         }
         for r in records {
@@ -887,13 +846,13 @@ impl Report {
             "variant": v.name,
             "total_seconds": total_s,
             "stages": records,
-            "excitation": {"train": excite_train["score"], "test": excite_test["score"]},
-            "identification": {"condition_number": identified["condition_number"], "errors": identified["errors"]},
+            "excitation": {"train": excite_train.score, "test": excite_test.score},
+            "identification": {"condition_number": identified.condition_number, "errors": identified.errors},
             "table2": table2,
             "feedforward_preset": feedforward,
             "closed_loop": sil_json,
-            "training": {"lr": train["lr"], "best_epoch": train["best_epoch"], "epochs": train["epochs"],
-                          "train_loss": train["train_loss"], "val_loss": train["val_loss"]},
+            "training": {"lr": train.lr, "best_epoch": train.best_epoch, "epochs": train.epochs,
+                          "train_loss": train.train_loss, "val_loss": train.val_loss},
             "evaluation": evaluate,
             "evaluation_increment": evaluate_inc,
             "quantisation": accuracy,

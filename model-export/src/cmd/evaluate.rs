@@ -3,6 +3,7 @@ use super::train::FeatureArgs;
 use anyhow::{Context, Result};
 use clap::Args;
 use compnet::data::{Sequence, Table};
+use compnet::report::{BaselineRef, EvaluatedRun, EvaluationReport, PaperRow};
 use compnet::{eval, io, plot};
 use std::path::{Path, PathBuf};
 
@@ -106,28 +107,39 @@ pub fn run(a: EvaluateArgs) -> Result<()> {
             println!("Beside the paper's Table 2 (Zhang et al. 2020, N m):\n{t}");
         }
         // The paper's figures for the same joints, beside ours.
-        let paper_rows: Option<Vec<serde_json::Value>> = paper.as_ref().map(|_| {
+        let paper_table2 = paper.as_ref().map(|_| {
             eval::PAPER_TABLE2
                 .iter()
-                .map(|(j, b, a, r)| {
-                    serde_json::json!({"joint": j, "rms_before": b, "rms_after": a, "reduction_pct": r})
+                .map(|&(joint, rms_before, rms_after, reduction_pct)| PaperRow {
+                    joint,
+                    rms_before,
+                    rms_after,
+                    reduction_pct,
                 })
                 .collect()
         });
-        reports.push(
-            serde_json::json!({"file": p.display().to_string(), "steps": s.len(),
-            "outputs": rows, "paper_table2": paper_rows}),
-        );
+        reports.push(EvaluatedRun {
+            file: p.display().to_string(),
+            steps: s.len(),
+            outputs: rows,
+            paper_table2,
+        });
     }
     let report = match &a.report {
         Some(r) => Some((
             r,
-            serde_json::to_string_pretty(
-                &serde_json::json!({"preset": spec.preset, "data": reports,
-                    "baseline": baseline.as_ref().map(|b| serde_json::json!({
-                        "data": a.baseline_data.iter().map(|p| p.display().to_string()).collect::<Vec<_>>(),
-                        "fit": b}))}),
-            )?,
+            serde_json::to_string_pretty(&EvaluationReport {
+                preset: spec.preset.clone(),
+                data: reports,
+                baseline: baseline.as_ref().map(|b| BaselineRef {
+                    data: a
+                        .baseline_data
+                        .iter()
+                        .map(|p| p.display().to_string())
+                        .collect(),
+                    fit: b.clone(),
+                }),
+            })?,
         )),
         None => None,
     };

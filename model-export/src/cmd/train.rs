@@ -2,6 +2,7 @@
 use anyhow::{Context, Result};
 use clap::Args;
 use compnet::data::{FeatureSpec, Sequence, Table};
+use compnet::report::{TrainReport, TrainTestBlock};
 use compnet::{eval, io, plot, train};
 use std::path::{Path, PathBuf};
 
@@ -217,15 +218,26 @@ pub fn run(a: TrainArgs) -> Result<()> {
             t.len(),
             eval::markdown(&rows)
         );
-        reports.push(
-            serde_json::json!({"file": p.display().to_string(), "steps": t.len(), "outputs": rows}),
-        );
+        reports.push(TrainTestBlock {
+            file: p.display().to_string(),
+            steps: t.len(),
+            outputs: rows,
+        });
     }
     let report = match &a.report {
         Some(_) => {
-            let j = serde_json::json!({"preset": spec.preset, "lr": hist.lr, "lr_trials": hist.lr_trials,
-                "epochs": hist.train.len(), "best_epoch": hist.best_epoch + 1, "output_gains": gains, "train_loss": hist.train, "val_loss": hist.val, "test": reports});
-            Some(serde_json::to_string_pretty(&j)?)
+            let report = TrainReport {
+                preset: spec.preset.clone(),
+                lr: hist.lr,
+                lr_trials: hist.lr_trials.clone(),
+                epochs: hist.train.len(),
+                best_epoch: hist.best_epoch + 1,
+                output_gains: gains.iter().map(|&g| f64::from(g)).collect(),
+                train_loss: hist.train.clone(),
+                val_loss: hist.val.clone(),
+                test: reports,
+            };
+            Some(serde_json::to_string_pretty(&report)?)
         }
         None => None,
     };
