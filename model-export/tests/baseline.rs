@@ -1,7 +1,7 @@
 //! The friction-feature least-squares baseline: coefficient recovery on synthetic
 //! datasets (with and without the `qdd`, `rest_dir` and presliding columns), bad input, and the
 //! `evaluate --baseline-data` wiring.
-use firmware::lstm::LstmDims;
+use firmware::nn::reference::LstmDims;
 use model_export::nn::baseline::{self, FEATURE_NAMES, N_FEATURES};
 use model_export::nn::data::{FeatureSpec, Table};
 use model_export::nn::{LstmModel, io};

@@ -2,7 +2,7 @@
 //! writes today (deterministic, in sync); quantised outputs track f32; bad input is
 //! refused with a clear error and leaves no file behind.
 use firmware::features::DRIVE_INPUTS_PER_JOINT;
-use firmware::lstm::LstmDims;
+use firmware::nn::reference::LstmDims;
 use model_export::export::{
     self, ExportError, Exported, Placement, Precision, WeightsIn, cli::ExportArgs,
 };
@@ -48,7 +48,7 @@ fn regenerating_the_golden_models_gives_the_committed_files() {
         let m = export::cli::model(&a).expect("model");
         export::cli::export(&m, &a).expect("export");
         let fresh = std::fs::read_to_string(&out).expect("read");
-        let committed = workspace().join(format!("firmware/src/model/golden_{}.rs", p.name()));
+        let committed = workspace().join(format!("test-kit/src/fixtures/golden_{}.rs", p.name()));
         let committed = std::fs::read_to_string(&committed).expect("committed golden file");
         assert!(
             fresh == committed,
@@ -164,7 +164,7 @@ fn regenerating_the_linear_input_golden_models_gives_the_committed_files() {
         export::cli::export(&m, &a).expect("export");
         let fresh = std::fs::read_to_string(&out).expect("read");
         let committed =
-            workspace().join(format!("firmware/src/model/golden_linear_{}.rs", p.name()));
+            workspace().join(format!("test-kit/src/fixtures/golden_linear_{}.rs", p.name()));
         let committed = std::fs::read_to_string(&committed).expect("committed golden file");
         assert!(
             fresh == committed,

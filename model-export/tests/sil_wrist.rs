@@ -3,7 +3,7 @@
 //! check the wiring; the full table is `model-export sil` (README, "Wrist SIL").
 
 use firmware::control::FaultFlags;
-use firmware::lstm::LstmDims;
+use firmware::nn::reference::LstmDims;
 use model_export::cli::run_args as cli;
 use model_export::nn::model::LstmModel;
 use model_export::sil::wrist::{WRIST_JOINTS, WristFeedforward, WristLstm, WristSetup, run_wrist};

@@ -18,7 +18,8 @@
 //! naming it, never silently dropped.
 use super::model::LstmModel;
 use anyhow::{Context, Result, bail};
-use firmware::lstm::{InputActivation, LstmDims};
+use firmware::nn::format::InputActivation;
+use firmware::nn::reference::LstmDims;
 use safetensors::{Dtype, SafeTensors, tensor::TensorView};
 use std::collections::HashMap;
 use std::path::Path;

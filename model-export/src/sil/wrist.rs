@@ -29,8 +29,7 @@ use firmware::control::{
 };
 use firmware::dynamics::RigidBodyModel;
 use firmware::features::{DRIVE_INPUTS_PER_JOINT, FRICTION_FEATURES};
-use firmware::model::FeaturePreset;
-use firmware::quant::I16Weights;
+use firmware::nn::format::{FeaturePreset, I16Weights};
 use nalgebra::Matrix3;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
