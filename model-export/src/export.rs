@@ -1349,7 +1349,10 @@ pub fn render(
     );
     let _ = writeln!(out, "// Placement: {}.", meta.placement.describe());
     let _ = writeln!(out, "#[allow(unused_imports)]");
-    let _ = writeln!(out, "use firmware::dynamics::{{JointModel, RigidBodyModel}};");
+    let _ = writeln!(
+        out,
+        "use firmware::dynamics::{{JointModel, RigidBodyModel}};"
+    );
     let _ = writeln!(out, "#[allow(unused_imports)]");
     let _ = writeln!(
         out,

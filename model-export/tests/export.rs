@@ -163,8 +163,10 @@ fn regenerating_the_linear_input_golden_models_gives_the_committed_files() {
         let m = export::cli::model(&a).expect("model");
         export::cli::export(&m, &a).expect("export");
         let fresh = std::fs::read_to_string(&out).expect("read");
-        let committed =
-            workspace().join(format!("test-kit/src/fixtures/golden_linear_{}.rs", p.name()));
+        let committed = workspace().join(format!(
+            "test-kit/src/fixtures/golden_linear_{}.rs",
+            p.name()
+        ));
         let committed = std::fs::read_to_string(&committed).expect("committed golden file");
         assert!(
             fresh == committed,

@@ -170,6 +170,9 @@ fn an_input_layer_straight_into_the_lstm_imports_as_the_linear_input_layer() {
         linear.input_activation,
         firmware::nn::format::InputActivation::Linear
     );
-    assert_eq!(tanh.input_activation, firmware::nn::format::InputActivation::Tanh);
+    assert_eq!(
+        tanh.input_activation,
+        firmware::nn::format::InputActivation::Tanh
+    );
     assert_eq!(linear.tensors(), tanh.tensors());
 }
