@@ -1,9 +1,9 @@
-//! Writes the activation tables (`quant::act`) to `OUT_DIR`, selects the DSP assembly, the
+//! Writes the activation tables (`nn::act`) to `OUT_DIR`, selects the DSP assembly, the
 //! compiled-in model, and adds `-Tdefmt.x` to the target binaries' link only when the
 //! `defmt` feature is on.
 //! (`-Tlink.x` is in `.cargo/config.toml` for the thumb target; the board's memory
 //! layout is the root `memory.x`, which the linker finds in the workspace root.)
-/// Entries of each activation table (`quant::act::TABLE_LEN`).
+/// Entries of each activation table (`nn::act::TABLE_LEN`).
 const TABLE_LEN: i32 = 8192;
 
 /// `round(f((k - 4096 + 0.5) / 512) * 32768)` clamped to `lo..=32767`, `k = 0..8192`: the
@@ -25,7 +25,7 @@ fn main() {
     let out = std::env::var("OUT_DIR").unwrap_or_default();
     let sigmoid = |x: f64| 1.0 / (1.0 + libm::exp(-x));
     let tables = format!(
-        "/// [sigmoid, tanh], see `quant::act`.\npub static ACT_TABLES: [[i16; {TABLE_LEN}]; 2] = [{}, {}];\n",
+        "/// [sigmoid, tanh], see `nn::act`.\npub static ACT_TABLES: [[i16; {TABLE_LEN}]; 2] = [{}, {}];\n",
         table(sigmoid, 0),
         table(libm::tanh, -32767)
     );

@@ -1,6 +1,8 @@
 #!/bin/sh
-# Regenerates the committed model files in firmware/src/model/ with `model-export export`
-# (seeded networks: the trained demo model replaces default_model.rs later).
+# Regenerates the committed model files with `model-export export`: the firmware's
+# default model firmware/src/model/default_model.rs (a seeded network: the trained demo
+# model replaces it later, `demo --install`) and the test kit's fixture models in
+# test-kit/src/fixtures/ (golden_*, bench_*).
 # Usage: firmware/scripts/regenerate-models.sh ROBOT.toml   (the default robot's DH TOML)
 # Every file's arrays go to SRAM when they fit the board's SRAM budget
 # (`--budgets`, `--weights-in auto`), except the int8 bench network: the QEMU bench
@@ -11,8 +13,8 @@ ROBOT=${1:?usage: $0 ROBOT.toml}
 cd "$(dirname "$0")/../.."
 cargo build -q -p model-export
 ME=${CARGO_TARGET_DIR:-target}/debug/model-export
-D=firmware/src/model
-$ME export --dims 9,64,64,3 --seed 1 --precision int16 --robot "$ROBOT" --budgets host-tests/budgets.toml --out $D/default_model.rs
+D=test-kit/src/fixtures
+$ME export --dims 9,64,64,3 --seed 1 --precision int16 --robot "$ROBOT" --budgets host-tests/budgets.toml --out firmware/src/model/default_model.rs
 for p in f32 int16 int8; do
   $ME export --dims 5,12,8,3 --seed 7 --preset custom --joints 1,2,3 --precision $p --self-check-steps 10000 --budgets host-tests/budgets.toml --out $D/golden_$p.rs
   if [ $p = int8 ]; then place=flash; else place=auto; fi

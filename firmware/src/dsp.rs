@@ -9,7 +9,7 @@
 //! iteration); the single-block kernels ([`dot4_i16`], [`dot4_i8`], [`dot4_f32`])
 //! serve the small layers. [`lstm_small_i16`] runs a small int16 network's input
 //! layer, gates and cell updates in one unrolled block with `[e; h]` held in FPU
-//! registers (its portable twin is `quant::QuantView::step`). VMLA/VFMA are not used: the separate rounding of VMUL + VADD
+//! registers (its portable twin is `nn::kernels::QuantView::step`). VMLA/VFMA are not used: the separate rounding of VMUL + VADD
 //! keeps the bits of the plain Rust sum (and the M4 takes 3 cycles for VMLA against 2
 //! for VMUL + VADD only when the VADD does not read the VMUL's result in the next
 //! instruction: the FPU's one-cycle result stall, which the f32 kernels avoid by
@@ -210,7 +210,7 @@ pub const SMALL_MAX_Z_QUADS: usize = 8;
 pub const SMALL_MAX_INPUT_QUADS: usize = 2;
 
 /// One step of a small int16 network except the input quantisation and the f32
-/// de-normalisation (everything of `quant::QuantView::step` in between, with the same
+/// de-normalisation (everything of `nn::kernels::QuantView::step` in between, with the same
 /// bits) in one assembly block, on the Cortex-M4: `xq` the quantised input,
 /// `in_w`/`in_bias`/`gate_w`/`gate_bias`/`out_w` the network's arrays (`EB * IQ`,
 /// `H * ZQ` and `HQ` quads), `state` advanced in place (the new `h` in `state.z[EB..]`,
@@ -222,7 +222,7 @@ pub const SMALL_MAX_INPUT_QUADS: usize = 2;
 /// Per cell (block `j` of rows `i, f, g, o`): the bias by one LDM, then per quad of
 /// `[e; h]` one LDM of its 8 weight words and 8 SMLAD, the input words moved from
 /// s0-s15 by VMOV (about 1.19 estimated cycles per MAC), then the cell update of
-/// `quant::cell_update` (4 SSAT + LDRSH activations, the int16 `c` by LDRSH, SMLABB,
+/// `nn::kernels::cell_update` (4 SSAT + LDRSH activations, the int16 `c` by LDRSH, SMLABB,
 /// SMULBB, ADD, SSAT, STRH, the tanh of `c`, the new `h` stored as one halfword),
 /// 22 instructions. Unrolled over
 /// cells and quads by the assembler (`.irp`, `.if` on the const sizes), with the
@@ -231,7 +231,7 @@ pub const SMALL_MAX_INPUT_QUADS: usize = 2;
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
 pub fn lstm_small_i16<
-    F: crate::quant::QuantFormat,
+    F: crate::nn::format::QuantFormat,
     const IQ: usize,
     const EB: usize,
     const H: usize,
@@ -244,7 +244,7 @@ pub fn lstm_small_i16<
     gate_w: &[[[u32; 4]; 2]],
     gate_bias: &[[i32; 4]; H],
     out_w: &[[[u32; 4]; 2]],
-    state: &mut crate::quant::QuantState<ZQ, H>,
+    state: &mut crate::nn::format::QuantState<ZQ, H>,
 ) -> Option<[i32; 4]> {
     let fits = IQ >= 1
         && IQ <= SMALL_MAX_INPUT_QUADS
@@ -260,7 +260,7 @@ pub fn lstm_small_i16<
     }
     #[cfg(fw_dsp_asm)]
     {
-        use crate::quant::act::{ACT_TABLES, SIGMOID, TABLE_LEN, TANH};
+        use crate::nn::act::{ACT_TABLES, SIGMOID, TABLE_LEN, TANH};
         let mid = |f: usize| {
             ACT_TABLES.get(f).map_or(core::ptr::null(), |t| {
                 t.as_ptr().wrapping_add(TABLE_LEN / 2)
@@ -272,7 +272,7 @@ pub fn lstm_small_i16<
             in_bias.as_ptr() as usize,
             gate_w.as_ptr() as usize,
             gate_bias.as_ptr() as usize,
-            state as *mut crate::quant::QuantState<ZQ, H> as usize,
+            state as *mut crate::nn::format::QuantState<ZQ, H> as usize,
             mid(SIGMOID),
             mid(TANH),
             out_w.as_ptr() as usize,
@@ -898,7 +898,7 @@ mod asm {
     /// `args` as documented, each pointer valid for what the wrapper's SAFETY note lists.
     #[inline(always)]
     pub unsafe fn lstm_small_i16<
-        F: crate::quant::QuantFormat,
+        F: crate::nn::format::QuantFormat,
         const IQ: usize,
         const EB: usize,
         const H: usize,
@@ -987,10 +987,10 @@ mod asm {
                 s1 = const F::GATE_SHIFTS[1],
                 s2 = const F::GATE_SHIFTS[2],
                 s3 = const F::GATE_SHIFTS[3],
-                ct = const crate::quant::CELL_TANH_SHIFT,
-                cr = const crate::quant::CELL_ROUND,
-                cig = const crate::quant::CELL_IG_SHIFT,
-                cf = const crate::quant::ACT_FRAC_BITS,
+                ct = const crate::nn::format::CELL_TANH_SHIFT,
+                cr = const crate::nn::format::CELL_ROUND,
+                cig = const crate::nn::format::CELL_IG_SHIFT,
+                cf = const crate::nn::format::ACT_FRAC_BITS,
                 inout("r0") args.as_ptr() => a0,
                 out("r1") a1,
                 out("r2") a2,
@@ -1077,10 +1077,20 @@ mod asm {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::golden::hash;
 
+    /// Test data: a 32-bit integer hash of `seed` (lowbias32).
     fn word(seed: u32) -> u32 {
-        hash(seed)
+        let mut x = seed;
+        x ^= x >> 16;
+        x = x.wrapping_mul(0x7feb_352d);
+        x ^= x >> 15;
+        x = x.wrapping_mul(0x846c_a68b);
+        x ^ (x >> 16)
+    }
+
+    /// A test value in [0, 1) from a hash.
+    fn unit(h: u32) -> f32 {
+        (h >> 8) as f32 * (1.0 / 16_777_216.0)
     }
 
     #[test]
@@ -1151,10 +1161,9 @@ mod tests {
     #[test]
     fn dot4_f32_sums_each_row_left_to_right() {
         let w: [[f32; 4]; 5] = core::array::from_fn(|k| {
-            core::array::from_fn(|r| crate::golden::unit(word((k * 4 + r) as u32)) - 0.5)
+            core::array::from_fn(|r| unit(word((k * 4 + r) as u32)) - 0.5)
         });
-        let x: [f32; 5] =
-            core::array::from_fn(|k| 3.0 * crate::golden::unit(word(300 + k as u32)) - 1.5);
+        let x: [f32; 5] = core::array::from_fn(|k| 3.0 * unit(word(300 + k as u32)) - 1.5);
         let got = dot4_f32([0.25, 0.0, -1.0, 2.0], &w, &x);
         for r in 0..4 {
             let mut s = [0.25f32, 0.0, -1.0, 2.0][r];
@@ -1199,10 +1208,9 @@ mod tests {
         // f32: 2 blocks of 11 columns (one 8-column iteration and 3 single columns).
         const N: usize = 11;
         let wf: [[f32; 4]; 2 * N] = core::array::from_fn(|k| {
-            core::array::from_fn(|r| crate::golden::unit(word(900 + (k * 4 + r) as u32)) - 0.5)
+            core::array::from_fn(|r| unit(word(900 + (k * 4 + r) as u32)) - 0.5)
         });
-        let xf: [f32; N] =
-            core::array::from_fn(|k| 4.0 * crate::golden::unit(word(1200 + k as u32)) - 2.0);
+        let xf: [f32; N] = core::array::from_fn(|k| 4.0 * unit(word(1200 + k as u32)) - 2.0);
         let mut out = [[9.0f32; 4]; 2];
         matvec4_f32(&mut out, &wf, &xf);
         for b in 0..2 {

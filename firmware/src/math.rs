@@ -58,7 +58,7 @@ fn exp_nonpositive(y: f32) -> f32 {
     p * f32::from_bits(((127 - k) as u32) << 23)
 }
 
-/// Logistic sigmoid for the f32 kernels (`quant::F32Lstm`): `1 / (1 + e^-x)` for
+/// Logistic sigmoid for the f32 kernels (`nn::kernels::F32Lstm`): `1 / (1 + e^-x)` for
 /// x >= 0, `e^x / (1 + e^x)` below, with an f32-only e^-|x| (Cephes polynomial, no
 /// special cases beyond the clamp) and one division: about half the estimated
 /// Cortex-M4 cycles of [`sigmoid`] (libm `expf`), measured in the f32 LSTM step. Same
@@ -72,7 +72,7 @@ pub fn sigmoid_fast(x: f32) -> f32 {
     num / (1.0 + e)
 }
 
-/// Hyperbolic tangent for the f32 kernels (`quant::F32Lstm`): `sign(x) (1 - e) /
+/// Hyperbolic tangent for the f32 kernels (`nn::kernels::F32Lstm`): `sign(x) (1 - e) /
 /// (1 + e)` with `e = e^-2|x|` from the f32-only exponential of [`sigmoid_fast`]
 /// (|x| clamped to 9, where tanh rounds to 1). Same bits on host and target.
 /// Accuracy against f64 (measured by `math::tests`): absolute error <= 2e-7 (near 0

@@ -707,7 +707,7 @@ mod tests {
             }],
             workloads: vec![WorkloadCost {
                 name: "dot64".into(),
-                function: "<firmware::bench::Dot64 as firmware::bench::Workload>::tick".into(),
+                function: "<test_kit::bench::Dot64 as test_kit::bench::Workload>::tick".into(),
                 ticks: 1,
                 macs: 64,
                 instructions_mean: 1.0,

@@ -1,9 +1,9 @@
 //! Parsing the QEMU binary's report and producing the host's twin of it.
 use crate::compare::Record;
 use anyhow::{Result, bail};
-use firmware::golden::{self, MathFn};
-use firmware::model::GoldenModel;
-use firmware::quant::golden::STEPS;
+use test_kit::fixtures::GoldenModel;
+use test_kit::golden::network::STEPS;
+use test_kit::golden::{self, MathFn};
 
 /// One `@suite` block of the QEMU report.
 #[derive(Debug, Default)]
@@ -143,7 +143,7 @@ pub fn host_lstm() -> Vec<Record> {
 }
 
 /// The host's computation of a quantised-kernel suite (`lstm_f32`, `lstm_int16`,
-/// `lstm_int8`, `lstm_int16_layer`): the golden model streamed over `firmware::quant::golden::STEPS` steps.
+/// `lstm_int8`, `lstm_int16_layer`): the golden model streamed over `test_kit::golden::network::STEPS` steps.
 pub fn host_quant(g: GoldenModel) -> Vec<Record> {
     let n = g.outputs();
     let mut out = Vec::with_capacity(STEPS * n);
@@ -161,7 +161,7 @@ pub fn host_quant(g: GoldenModel) -> Vec<Record> {
 pub fn check_exporter_digest(g: GoldenModel, records: &[Record]) -> Result<()> {
     let (steps, want) = g.self_check();
     let n = g.outputs();
-    let mut d = firmware::quant::golden::Digest::default();
+    let mut d = test_kit::golden::network::Digest::default();
     for r in records.iter().take(steps * n) {
         d.add(&[f32::from_bits(r.output_bits)]);
     }

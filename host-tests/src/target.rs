@@ -28,7 +28,7 @@ pub enum FirmwareBin {
     /// The QEMU mps2-an386 test binary (package `firmware/qemu`).
     Qemu,
     /// The QEMU mps2-an386 bench binary: runs every registered workload
-    /// (`firmware::bench`) for the cycle estimator (package `firmware/qemu`).
+    /// (`test_kit::bench`) for the cycle estimator (package `firmware/qemu`).
     QemuBench,
 }
 

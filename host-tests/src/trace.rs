@@ -33,7 +33,7 @@ pub const INSTRUCTIONS_PER_SYSTICK: u64 = 40;
 /// What the bench binary printed for one workload.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct BenchLine {
-    /// Workload name (`firmware::bench::Workload::NAME`).
+    /// Workload name (`test_kit::bench::Workload::NAME`).
     pub name: String,
     /// Address of its tick function (Thumb bit clear).
     pub tick_addr: u32,

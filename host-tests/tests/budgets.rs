@@ -102,7 +102,7 @@ fn firmware_fits_its_budgets_and_lowered_budgets_fail() {
     // with `-icount shift=0`: SysTick counts 40 instructions, and both the ticks'
     // loop and the empty baseline loop are read to +-1 count; the baseline's own
     // `bx lr` is subtracted too.
-    assert_eq!(m.workloads.len(), firmware::bench::workload_count());
+    assert_eq!(m.workloads.len(), test_kit::bench::workload_count());
     for w in &m.workloads {
         assert!(
             w.ticks > 0 && w.cycles_max >= w.cycles_min && w.cycles_min > 0,

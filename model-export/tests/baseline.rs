@@ -4,7 +4,7 @@
 use compnet::baseline::{self, FEATURE_NAMES, N_FEATURES};
 use compnet::data::{FeatureSpec, Table};
 use compnet::{LstmModel, io};
-use firmware::lstm::LstmDims;
+use firmware::nn::reference::LstmDims;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};

@@ -3,7 +3,8 @@
 //! refused with a clear error and leaves no file behind.
 use compnet::model::LstmModel;
 use firmware::features::DRIVE_INPUTS_PER_JOINT;
-use firmware::lstm::LstmDims;
+use compnet::model::LstmModel;
+use firmware::nn::reference::LstmDims;
 use fw_export::{ExportError, Exported, Placement, Precision, WeightsIn};
 use model_export::cmd::export::ExportArgs;
 use std::path::{Path, PathBuf};
@@ -47,7 +48,7 @@ fn regenerating_the_golden_models_gives_the_committed_files() {
         let m = model_export::cmd::export::model(&a).expect("model");
         model_export::cmd::export::export(&m, &a).expect("export");
         let fresh = std::fs::read_to_string(&out).expect("read");
-        let committed = workspace().join(format!("firmware/src/model/golden_{}.rs", p.name()));
+        let committed = workspace().join(format!("test-kit/src/fixtures/golden_{}.rs", p.name()));
         let committed = std::fs::read_to_string(&committed).expect("committed golden file");
         assert!(
             fresh == committed,
@@ -163,8 +164,10 @@ fn regenerating_the_linear_input_golden_models_gives_the_committed_files() {
         let m = model_export::cmd::export::model(&a).expect("model");
         model_export::cmd::export::export(&m, &a).expect("export");
         let fresh = std::fs::read_to_string(&out).expect("read");
-        let committed =
-            workspace().join(format!("firmware/src/model/golden_linear_{}.rs", p.name()));
+        let committed = workspace().join(format!(
+            "test-kit/src/fixtures/golden_linear_{}.rs",
+            p.name()
+        ));
         let committed = std::fs::read_to_string(&committed).expect("committed golden file");
         assert!(
             fresh == committed,

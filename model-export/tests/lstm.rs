@@ -5,7 +5,8 @@ use compnet::data::{FeatureSpec, Sequence, Table};
 use compnet::model::normalised_sequence;
 use compnet::train::{TrainConfig, new_model, train};
 use compnet::{LstmModel, Net, eval, io};
-use firmware::lstm::{InputActivation, LstmDims};
+use firmware::nn::format::InputActivation;
+use firmware::nn::reference::LstmDims;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -126,7 +127,7 @@ fn a_pytorch_model_imports_and_matches_its_reference() {
 
 #[test]
 fn a_pytorch_model_with_a_linear_input_layer_imports_and_matches_its_reference() {
-    use firmware::lstm::InputActivation;
+    use firmware::nn::format::InputActivation;
     let path = fixtures().join("torch_linear.safetensors");
     let m = io::read_model(&path).unwrap();
     assert_eq!(m.input_activation, InputActivation::Linear);
@@ -305,7 +306,7 @@ fn training_learns_a_system_with_memory() {
     // The training kernel runs tanh: a linear input layer is refused, not retrained as
     // another network.
     let mut linear = init.clone();
-    linear.input_activation = firmware::lstm::InputActivation::Linear;
+    linear.input_activation = firmware::nn::format::InputActivation::Linear;
     let e = format!("{:#}", train(&linear, &[&tr], &[&va], &cfg).unwrap_err());
     assert!(e.contains("linear"), "{e}");
 }
@@ -427,7 +428,7 @@ fn drive_linear_stage_is_fitted_stored_and_streamed() {
     assert!(rest < 1e-3, "the stage leaves {rest}");
 
     let mut m = LstmModel::init(
-        firmware::lstm::LstmDims {
+        firmware::nn::reference::LstmDims {
             input: 2 * PER_JOINT,
             embed: 4,
             hidden: 4,
@@ -521,7 +522,7 @@ fn torch_style_file(
 
 #[test]
 fn pytorch_files_that_would_import_wrongly_are_refused_naming_why() {
-    use firmware::lstm::InputActivation;
+    use firmware::nn::format::InputActivation;
     let dir = tempfile::tempdir().unwrap();
     let m = LstmModel::init(
         LstmDims {
@@ -582,7 +583,7 @@ fn pytorch_files_that_would_import_wrongly_are_refused_naming_why() {
 
 #[test]
 fn import_takes_a_linear_input_layer_from_the_flag_or_the_metadata() {
-    use firmware::lstm::InputActivation;
+    use firmware::nn::format::InputActivation;
     let dir = tempfile::tempdir().unwrap();
     let fixture = io::read_model(&fixtures().join("torch_linear.safetensors")).unwrap();
     // The same tensors without metadata, as a plain torch save would write them.

@@ -169,8 +169,11 @@ fn an_input_layer_straight_into_the_lstm_imports_as_the_linear_input_layer() {
     let tanh = onnx::read_onnx_model(&fixture("torch_lstm.onnx")).unwrap();
     assert_eq!(
         linear.input_activation,
-        firmware::lstm::InputActivation::Linear
+        firmware::nn::format::InputActivation::Linear
     );
-    assert_eq!(tanh.input_activation, firmware::lstm::InputActivation::Tanh);
+    assert_eq!(
+        tanh.input_activation,
+        firmware::nn::format::InputActivation::Tanh
+    );
     assert_eq!(linear.tensors(), tanh.tensors());
 }

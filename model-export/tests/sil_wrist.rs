@@ -4,7 +4,7 @@
 
 use compnet::model::LstmModel;
 use firmware::control::FaultFlags;
-use firmware::lstm::LstmDims;
+use firmware::nn::reference::LstmDims;
 use model_export::cli::run_args as cli;
 use plant_sim::{CommandedTrajectory, PlantParameters};
 use sil::wrist::{WRIST_JOINTS, WristFeedforward, WristLstm, WristSetup, run_wrist};

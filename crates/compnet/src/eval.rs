@@ -251,7 +251,7 @@ mod tests {
         for spec in [FeatureSpec::paper(&[2]), FeatureSpec::feedforward(&[2])] {
             let seq = spec.sequence(&table).unwrap();
             let m = LstmModel::init(
-                firmware::lstm::LstmDims {
+                firmware::nn::reference::LstmDims {
                     input: spec.inputs.len(),
                     embed: 4,
                     hidden: 4,

@@ -21,7 +21,7 @@
 //! windows on its own buffers, and the shard gradients are summed in a fixed order.
 use super::gemm::{Op, sgemm};
 use super::model::LstmModel;
-use firmware::lstm::LstmDims;
+use firmware::nn::reference::LstmDims;
 
 /// `exp(x)` for f32 in branch-free arithmetic the compiler vectorises (Cephes' `expf`
 /// polynomial after range reduction; relative error ~2e-7). Inputs clamp to [−87, 88].

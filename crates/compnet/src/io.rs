@@ -19,7 +19,8 @@
 use super::model::LstmModel;
 use crate::data::Table;
 use anyhow::{Context, Result, bail};
-use firmware::lstm::{InputActivation, LstmDims};
+use firmware::nn::format::InputActivation;
+use firmware::nn::reference::LstmDims;
 use safetensors::{Dtype, SafeTensors, tensor::TensorView};
 use std::collections::HashMap;
 use std::path::Path;

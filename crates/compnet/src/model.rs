@@ -4,7 +4,8 @@ use super::fused::FusedLstm;
 use anyhow::{Result, bail};
 use candle_core::{DType, Device, Tensor, Var};
 use firmware::features::{self, DRIVE_INPUTS_PER_JOINT, FRICTION_FEATURES};
-use firmware::lstm::{InputActivation, LstmDims, LstmView};
+use firmware::nn::format::InputActivation;
+use firmware::nn::reference::{LstmDims, LstmView};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -210,7 +211,7 @@ pub fn linear_stage_nm(linear: &[f32], row: &[f32]) -> Vec<f32> {
         .collect()
 }
 
-/// Runs [`firmware::lstm::LstmView::step`] on a host model, keeping the state.
+/// Runs [`firmware::nn::reference::LstmView::step`] on a host model, keeping the state.
 #[derive(Debug)]
 pub struct Streamer<'a> {
     model: &'a LstmModel,

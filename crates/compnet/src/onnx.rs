@@ -22,7 +22,8 @@
 
 use super::model::LstmModel;
 use anyhow::{Context, Result, bail};
-use firmware::lstm::{InputActivation, LstmDims};
+use firmware::nn::format::InputActivation;
+use firmware::nn::reference::LstmDims;
 use onnx_protobuf::{AttributeProto, Message, ModelProto, NodeProto, TensorProto};
 use std::collections::HashMap;
 use std::path::Path;

@@ -1,5 +1,5 @@
 //! Quantise a compensation network into the firmware's kernel layout
-//! (`firmware::quant`, Q formats documented there) and write it, with the
+//! (`firmware::nn::kernels`, Q formats documented there) and write it, with the
 //! normalisation, feature preset, joints, control rate and optionally the dynamics
 //! model, as ONE Rust source file of fixed-size `static`/`const` arrays that the
 //! firmware compiles in (`model-export export`).
@@ -12,12 +12,12 @@
 use anyhow::{Context, Result, bail};
 use compnet::model::LstmModel;
 use firmware::dynamics::RigidBodyModel;
-use firmware::lstm::InputActivation;
-use firmware::quant::{
-    ACT_FRAC_BITS, F32Dims, F32View, I8Weights, I16Weights, INPUT_FRAC_BITS, QuantDims, QuantView,
-    WeightFormat, act,
+use firmware::nn::act;
+use firmware::nn::format::{
+    ACT_FRAC_BITS, I8Weights, I16Weights, INPUT_FRAC_BITS, InputActivation, WeightFormat,
 };
 use robot::dynamics::firmware_model::FirmwareModel;
+use firmware::nn::kernels::{F32Dims, F32View, QuantDims, QuantView};
 use sha2::{Digest, Sha256};
 use std::fmt::Write as _;
 
@@ -351,7 +351,7 @@ fn quantise_output_row(w: &[f64], max_w: i32) -> (Vec<i32>, f64) {
 const GATE_LAYERS: [&str; 4] = ["lstm gate i", "lstm gate f", "lstm gate g", "lstm gate o"];
 
 impl<F: WeightFormat> QuantNet<F> {
-    /// Quantises `m` (see `firmware::quant` for the scheme).
+    /// Quantises `m` (see `firmware::nn::kernels` for the scheme).
     pub fn quantise(m: &LstmModel) -> Result<Self, ExportError> {
         check_finite(m)?;
         let d = m.dims;
@@ -367,7 +367,7 @@ impl<F: WeightFormat> QuantNet<F> {
             .collect();
         let p_in = group_exponent("input", &in_rows, x_in, F::MAX_WEIGHT)?;
         // A linear input layer: e in F fraction bits, the shift to it, and the factor
-        // 2^(15 - F) on the gate weights of the e columns (module docs of firmware::quant).
+        // 2^(15 - F) on the gate weights of the e columns (module docs of firmware::nn::kernels).
         let (in_shift, e_frac) = match m.input_activation {
             InputActivation::Tanh => (index_shift(p_in, x_in), ACT_FRAC_BITS as i32),
             InputActivation::Linear => {
@@ -727,7 +727,7 @@ pub struct ExportMeta {
     pub joints: Vec<usize>,
     /// Control rate [Hz].
     pub control_rate_hz: u32,
-    /// Steps of golden input for the self-check (`firmware::quant::golden_input`).
+    /// Steps of golden input for the self-check (`test_kit::golden::network::input`).
     pub self_check_steps: usize,
     /// Where the model's arrays live on the target, and why.
     pub placement: PlacementChoice,
@@ -1135,7 +1135,7 @@ fn activation_variant(a: InputActivation) -> &'static str {
     }
 }
 
-/// The `firmware::quant::InputLayer` type of an activation.
+/// The `firmware::nn::kernels::InputLayer` type of an activation.
 fn input_layer_type(a: InputActivation) -> &'static str {
     match a {
         InputActivation::Tanh => "TanhInput",
@@ -1271,12 +1271,12 @@ fn write_any_dynamics(s: &mut String, section: &str, d: &FirmwareModel) {
     }
 }
 
-/// The golden inputs of the self-check: `firmware::quant::golden::input`.
+/// The golden inputs of the self-check: `test_kit::golden::network::input`.
 pub fn golden_inputs(n_inputs: usize, steps: usize) -> Vec<Vec<f32>> {
     (0..steps)
         .map(|t| {
             (0..n_inputs)
-                .map(|k| firmware::quant::golden::input(t, k))
+                .map(|k| test_kit::golden::network::input(t, k))
                 .collect()
         })
         .collect()
@@ -1343,7 +1343,7 @@ pub fn render(
     let f = firmware::features::FRICTION_FEATURES;
     // Without a linear stage the file does not depend on the number of features.
     let stage = if m.linear.iter().all(|&x| x == 0.0) {
-        "[[0.0; crate::features::FRICTION_FEATURES]; OUTPUTS]".to_string()
+        "[[0.0; firmware::features::FRICTION_FEATURES]; OUTPUTS]".to_string()
     } else {
         let rows: Vec<Vec<f32>> = (0..m.dims.output)
             .map(|k| {
@@ -1357,7 +1357,7 @@ pub fn render(
     let _ = write!(s, "{section}");
     let _ = writeln!(
         s,
-        "pub static LINEAR_STAGE: [[f32; crate::features::FRICTION_FEATURES]; OUTPUTS] = {stage};"
+        "pub static LINEAR_STAGE: [[f32; firmware::features::FRICTION_FEATURES]; OUTPUTS] = {stage};"
     );
     let _ = writeln!(s, "/// Input feature names, in input order.");
     let _ = writeln!(
@@ -1406,7 +1406,7 @@ pub fn render(
     let outs = net.stream(&golden_inputs(m.dims.input, meta.self_check_steps));
     let _ = writeln!(
         s,
-        "/// Self-check: streaming steps of `firmware::quant::golden::input` from the zero state."
+        "/// Self-check: streaming steps of `test_kit::golden::network::input` from the zero state."
     );
     let _ = writeln!(
         s,
@@ -1444,15 +1444,19 @@ pub fn render(
     );
     let _ = writeln!(out, "// Placement: {}.", meta.placement.describe());
     let _ = writeln!(out, "#[allow(unused_imports)]");
-    let _ = writeln!(out, "use robot::dynamics::{{JointModel, RigidBodyModel}};");
-    let _ = writeln!(out, "#[allow(unused_imports)]");
-    let _ = writeln!(out, "use crate::model::{{FeaturePreset, Precision}};");
-    let _ = writeln!(out, "#[allow(unused_imports)]");
-    let _ = writeln!(out, "use crate::lstm::InputActivation;");
+    let _ = writeln!(
+        out,
+        "use firmware::dynamics::{{JointModel, RigidBodyModel}};"
+    );
     let _ = writeln!(out, "#[allow(unused_imports)]");
     let _ = writeln!(
         out,
-        "use crate::quant::{{F32Lstm, F32State, I8Weights, I16Weights, LinearInput, QuantFormat, QuantLstm, QuantState, TanhInput}};"
+        "use firmware::nn::format::{{FeaturePreset, I8Weights, I16Weights, InputActivation, Precision, QuantFormat, QuantState}};"
+    );
+    let _ = writeln!(out, "#[allow(unused_imports)]");
+    let _ = writeln!(
+        out,
+        "use firmware::nn::kernels::{{F32Lstm, F32State, LinearInput, QuantLstm, TanhInput}};"
     );
     let _ = writeln!(
         out,

@@ -27,8 +27,7 @@ use firmware::control::{
 };
 use firmware::dynamics::RigidBodyModel;
 use firmware::features::{DRIVE_INPUTS_PER_JOINT, FRICTION_FEATURES};
-use firmware::model::FeaturePreset;
-use firmware::quant::I16Weights;
+use firmware::nn::format::{FeaturePreset, I16Weights};
 use fw_export::{F32Net, QuantNet};
 use nalgebra::Matrix3;
 use plant_sim::{CommandedTrajectory, DriveState, PlantEffects, PlantParameters};

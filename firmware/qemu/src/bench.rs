@@ -1,5 +1,5 @@
 //! QEMU bench binary (mps2-an386, Cortex-M4F): runs every registered workload
-//! (`firmware::bench::visit_all`) `TICKS` times and prints, over semihosting, the
+//! (`test_kit::bench::visit_all`) `TICKS` times and prints, over semihosting, the
 //! address of its tick function and the SysTick count around the ticks.
 //!
 //! `host-tests` (`cargo run -p host-tests --bin budget`) runs it twice: under
@@ -22,7 +22,7 @@ use core::hint::black_box;
 use cortex_m::peripheral::{SYST, syst::SystClkSource};
 use cortex_m_rt::entry;
 use cortex_m_semihosting::hio;
-use firmware::bench::{Visitor, Workload, visit_all};
+use test_kit::bench::{Visitor, Workload, visit_all};
 
 mod exit;
 /// The start-up copy of the CCM SRAM code, as on the board.

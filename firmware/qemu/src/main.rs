@@ -8,9 +8,9 @@
 use core::fmt::Write;
 use cortex_m_rt::entry;
 use cortex_m_semihosting::hio;
-use firmware::golden::{self, MathFn};
-use firmware::model::GoldenModel;
-use firmware::quant::golden::STEPS;
+use test_kit::fixtures::GoldenModel;
+use test_kit::golden::network::STEPS;
+use test_kit::golden::{self, MathFn};
 
 mod exit;
 /// The start-up copy of the CCM SRAM code, as on the board.
@@ -139,7 +139,7 @@ fn main() -> ! {
     });
     out.line(format_args!("@end lstm"));
 
-    // Quantised kernels (firmware::quant): 10 000 streaming steps of each golden model.
+    // Network kernels (firmware::nn::kernels): 10 000 streaming steps of each golden model.
     for g in GoldenModel::ALL {
         let n = g.outputs();
         out.line(format_args!("@suite {} {}", g.name(), STEPS * n));

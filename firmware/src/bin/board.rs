@@ -223,7 +223,7 @@ fn main() -> ! {
 
     let mut ticks: u32 = 0;
     let mut sequence: u16 = 0;
-    let mut comp_cycles = firmware::bench::TickStats::new();
+    let mut comp_cycles = firmware::log::TickStats::new();
     let mut comp_faults = FaultFlags::NONE;
     loop {
         if !COMPENSATOR_DUE.swap(false, Ordering::Acquire) {

@@ -4,7 +4,7 @@
 //! HardFault handler that parks the core. No drive peripherals are touched.
 //!
 //! Each tick runs every registered workload
-//! (`firmware::bench::visit_all`, the same ones the QEMU cycle estimator traces),
+//! (`test_kit::bench::visit_all`, the same ones the QEMU cycle estimator traces),
 //! times each with DWT CYCCNT, and once per second reports per workload and for the
 //! whole tick the min / max / mean cycles over defmt. These are
 //! measured cycles (`cargo board-bench-run`), the hardware counterpart of `cargo run -p host-tests --bin budget`.
@@ -13,7 +13,8 @@
 
 use cortex_m::peripheral::{DWT, syst::SystClkSource};
 use cortex_m_rt::{ExceptionFrame, entry, exception};
-use firmware::bench::{TickStats, Visitor, Workload, visit_all};
+use firmware::log::TickStats;
+use test_kit::bench::{Visitor, Workload, visit_all};
 // The device crate supplies the interrupt vector table.
 #[cfg(not(feature = "defmt"))]
 use panic_halt as _;
@@ -61,7 +62,7 @@ fn main() -> ! {
         TICK_HZ,
         CORE_CLOCK_HZ,
         clock::FLASH_WAIT_STATES,
-        firmware::bench::workload_count()
+        test_kit::bench::workload_count()
     );
     loop {
         cortex_m::asm::wfi();

@@ -2,15 +2,13 @@
 // Network 9x64x64x3 (Int16), preset Paper, joints [3, 4, 5], 100 Hz.
 // Placement: network 68968 bytes in SRAM, rigid-body model 808 bytes in SRAM, linear stage 324 bytes in SRAM (SRAM: .data, copied from flash at reset; flash: .rodata); SRAM budget for the model 73728 bytes.
 #[allow(unused_imports)]
-use crate::dynamics::{JointModel, RigidBodyModel};
+use firmware::dynamics::{JointModel, RigidBodyModel};
 #[allow(unused_imports)]
-use crate::model::{FeaturePreset, Precision};
+use firmware::nn::format::{FeaturePreset, I8Weights, I16Weights, InputActivation, Precision, QuantFormat, QuantState};
 #[allow(unused_imports)]
-use crate::lstm::InputActivation;
-#[allow(unused_imports)]
-use crate::quant::{F32Lstm, F32State, I8Weights, I16Weights, LinearInput, QuantFormat, QuantLstm, QuantState, TanhInput};
+use firmware::nn::kernels::{F32Lstm, F32State, LinearInput, QuantLstm, TanhInput};
 /// SHA-256 (first 8 bytes) of everything below this line.
-pub const CONTENT_HASH: u64 = 0x9a4538ac9ac2560e;
+pub const CONTENT_HASH: u64 = 0xf220ffef69e4697a;
 /// Layout version of this file (`model_export::export::SCHEMA_VERSION`).
 pub const SCHEMA_VERSION: u32 = 5;
 /// Numeric precision of the network.
@@ -26,7 +24,7 @@ pub const OUTPUTS: usize = 3;
 /// The `drive` preset's linear stage: per output, coefficients [N*m per unit] of
 /// `features::FRICTION_FEATURE_NAMES` (zero for other presets).
 #[cfg_attr(target_os = "none", allow(unsafe_code), unsafe(link_section = ".data.model_arrays"))]
-pub static LINEAR_STAGE: [[f32; crate::features::FRICTION_FEATURES]; OUTPUTS] = [[0.0; crate::features::FRICTION_FEATURES]; OUTPUTS];
+pub static LINEAR_STAGE: [[f32; firmware::features::FRICTION_FEATURES]; OUTPUTS] = [[0.0; firmware::features::FRICTION_FEATURES]; OUTPUTS];
 /// Input feature names, in input order.
 pub const INPUT_NAMES: [&str; 9] = ["tau_model_j4", "tau_model_j5", "tau_model_j6", "tau_meas_j4", "tau_meas_j5", "tau_meas_j6", "q_j4", "q_j5", "q_j6"];
 /// Output names, in output order.
@@ -226,7 +224,7 @@ pub static DYNAMICS: RigidBodyModel<6> = RigidBodyModel {
     gravity_m_s2: [0.0, 0.0, -9.81],
     coulomb_inv_eps_s_rad: 0.0,
 };
-/// Self-check: streaming steps of `firmware::quant::golden::input` from the zero state.
+/// Self-check: streaming steps of `test_kit::golden::network::input` from the zero state.
 pub const SELF_CHECK_STEPS: usize = 1000;
 /// Self-check: FNV-1a of the output bits of those steps, computed by the exporter.
 pub const SELF_CHECK_FNV: u64 = 0xab6b7eb839cead80;

@@ -18,7 +18,7 @@
 //! nonlinearity and bounds the LSTM's input to (-1, 1), a fixed Q format for the integer
 //! kernels. A linear input layer (a plain PyTorch `nn.Linear`, the most common form) is
 //! run as it is; the integer kernels then give `e` a power-of-two format wide enough for
-//! its range (see `crate::quant`). Each model names its activation.
+//! its range (see `crate::nn::kernels`). Each model names its activation.
 //!
 //! The LSTM bias `b` is PyTorch's `bias_ih + bias_hh`, summed once by the exporter.
 //!
@@ -35,46 +35,7 @@
 //! the control loop does that around it.
 
 use crate::math;
-
-/// The activation after the fully connected input layer.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum InputActivation {
-    /// `e = tanh(W_in x_n + b_in)`.
-    Tanh,
-    /// `e = W_in x_n + b_in` (identity: a plain `nn.Linear`).
-    Linear,
-}
-
-impl InputActivation {
-    /// Whether the input layer is linear (usable in constant expressions).
-    pub const fn is_linear(self) -> bool {
-        matches!(self, InputActivation::Linear)
-    }
-
-    /// Name in model files and metadata (`tanh`, `linear`).
-    pub const fn name(self) -> &'static str {
-        match self {
-            InputActivation::Tanh => "tanh",
-            InputActivation::Linear => "linear",
-        }
-    }
-
-    /// The activation of a name ([`Self::name`]).
-    pub fn from_name(name: &str) -> Option<Self> {
-        [InputActivation::Tanh, InputActivation::Linear]
-            .into_iter()
-            .find(|a| a.name() == name)
-    }
-
-    /// Applies the activation to an input-layer sum.
-    #[inline(always)]
-    pub fn apply(self, x: f32) -> f32 {
-        match self {
-            InputActivation::Tanh => math::tanh(x),
-            InputActivation::Linear => x,
-        }
-    }
-}
+use crate::nn::format::InputActivation;
 
 /// Sizes of a network: inputs, input-layer width, LSTM cells, outputs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -389,41 +350,6 @@ fn dot(a: &[f32], b: &[f32]) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::golden;
-
-    #[test]
-    fn view_and_fixed_step_agree_bit_for_bit() {
-        let net = golden::lstm_network();
-        let view = net.view();
-        view.check().unwrap();
-        let mut fixed = LstmState::new();
-        let (mut h, mut c) = ([0.0f32; golden::LSTM_H], [0.0f32; golden::LSTM_H]);
-        let (mut e, mut hn) = ([0.0f32; golden::LSTM_E], [0.0f32; golden::LSTM_H]);
-        for t in 0..500 {
-            let x = golden::lstm_input(t);
-            let y = net.step(&mut fixed, &x);
-            let mut y2 = [0.0f32; golden::LSTM_O];
-            view.step(&mut h, &mut c, &mut e, &mut hn, &x, &mut y2)
-                .unwrap();
-            assert_eq!(y.map(f32::to_bits), y2.map(f32::to_bits), "step {t}");
-        }
-    }
-
-    #[test]
-    fn reset_mid_sequence_equals_a_fresh_start() {
-        let net = golden::lstm_network();
-        let mut run = LstmState::new();
-        for t in 0..300 {
-            net.step(&mut run, &golden::lstm_input(t));
-        }
-        assert_ne!(run, LstmState::new());
-        run.reset();
-        let mut fresh = LstmState::new();
-        for t in 300..600 {
-            let x = golden::lstm_input(t);
-            assert_eq!(net.step(&mut run, &x), net.step(&mut fresh, &x), "step {t}");
-        }
-    }
 
     #[test]
     fn matches_a_hand_computed_single_cell() {
@@ -471,28 +397,5 @@ mod tests {
                 "{activation:?} t {t}: {y} vs {want}"
             );
         }
-    }
-
-    #[test]
-    fn wrong_lengths_are_rejected_without_panic() {
-        let net = golden::lstm_network();
-        let mut view = net.view();
-        view.w_hh = &view.w_hh[1..];
-        assert_eq!(view.check().unwrap_err().field, "lstm.weight_hh_l0");
-        let view = net.view();
-        let (mut h, mut c) = ([0.0f32; golden::LSTM_H], [0.0f32; golden::LSTM_H]);
-        let (mut e, mut hn) = ([0.0f32; golden::LSTM_E], [0.0f32; golden::LSTM_H]);
-        let mut y = [0.0f32; golden::LSTM_O + 1];
-        let err = view
-            .step(
-                &mut h,
-                &mut c,
-                &mut e,
-                &mut hn,
-                &[0.0; golden::LSTM_I],
-                &mut y,
-            )
-            .unwrap_err();
-        assert_eq!(err.field, "out");
     }
 }

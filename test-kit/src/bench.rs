@@ -3,13 +3,13 @@
 //!
 //! A workload is a type implementing [`Workload`]; its [`Workload::tick`] is the
 //! measured entry point, marked `#[inline(never)]` so it keeps one address and one
-//! stable symbol (`<firmware::bench::Dot64 as firmware::bench::Workload>::tick`).
+//! stable symbol (`<test_kit::bench::Dot64 as test_kit::bench::Workload>::tick`).
 //! Registering a workload is one line in [`visit_all`]. The QEMU bench binary
-//! (`firmware/qemu/src/bench.rs`), the board binary and the host tests all drive
+//! (`firmware/qemu/src/bench.rs`), the board bench binary and the host tests all drive
 //! the registered workloads through a [`Visitor`].
 
 use crate::golden;
-use crate::math;
+use firmware::math;
 
 /// A per-tick computation measured by the budget checks.
 pub trait Workload {
@@ -186,26 +186,26 @@ impl Workload for JointTrig6 {
 /// measured tick is the network step alone, not the test-signal generator).
 pub const MODEL_INPUT_STEPS: usize = 16;
 
-/// One streaming step of a compiled-in model (`crate::model`) per tick, on golden
+/// One streaming step of a fixture model (`crate::fixtures`) per tick, on golden
 /// inputs that change every tick.
 macro_rules! model_workload {
     ($(#[$doc:meta])* $ty:ident, $name:literal, $m:ident) => {
         $(#[$doc])*
         pub struct $ty {
-            state: crate::model::$m::State,
-            inputs: [[f32; crate::model::$m::INPUTS]; MODEL_INPUT_STEPS],
+            state: crate::fixtures::$m::State,
+            inputs: [[f32; crate::fixtures::$m::INPUTS]; MODEL_INPUT_STEPS],
             t: usize,
             out: f32,
         }
 
         impl Workload for $ty {
             const NAME: &'static str = $name;
-            const MACS: u32 = crate::model::$m::Network::MACS;
+            const MACS: u32 = crate::fixtures::$m::Network::MACS;
 
             fn new() -> Self {
                 $ty {
-                    state: crate::model::$m::State::new(),
-                    inputs: core::array::from_fn(crate::quant::golden::inputs),
+                    state: crate::fixtures::$m::State::new(),
+                    inputs: core::array::from_fn(crate::golden::network::inputs),
                     t: 0,
                     out: 0.0,
                 }
@@ -215,7 +215,7 @@ macro_rules! model_workload {
             #[cfg_attr(target_os = "none", unsafe(link_section = ".ccmram_text"))]
             fn tick(&mut self) {
                 let x = self.inputs[self.t % MODEL_INPUT_STEPS];
-                let y = crate::model::$m::NETWORK.step(&mut self.state, &x);
+                let y = crate::fixtures::$m::NETWORK.step(&mut self.state, &x);
                 self.out = y[0];
                 self.t += 1;
             }
@@ -228,11 +228,11 @@ macro_rules! model_workload {
 }
 
 model_workload!(
-    /// The paper's network (9 -> 64 -> LSTM 64 -> 3), f32 (`quant::F32Lstm`).
+    /// The paper's network (9 -> 64 -> LSTM 64 -> 3), f32 (`nn::kernels::F32Lstm`).
     LstmPaperF32, "lstm_paper_f32", bench_paper_f32
 );
 model_workload!(
-    /// The paper's network, int16 weights and activations (`quant::QuantLstm`, SMLAD).
+    /// The paper's network, int16 weights and activations (`nn::kernels::QuantLstm`, SMLAD).
     LstmPaperInt16, "lstm_paper_int16", bench_paper_int16
 );
 model_workload!(
@@ -257,7 +257,7 @@ model_workload!(
     LstmLinearInt8, "lstm_linear_int8", golden_linear_int8
 );
 
-/// The 6-DoF rigid-body model (`dynamics::RigidBodyModel<6>::torques`, f32) with the
+/// The 6-DoF rigid-body model (`firmware::dynamics::RigidBodyModel<6>::torques`, f32) with the
 /// nominal parameters of the default robot exported with the paper benchmark model.
 pub struct Dynamics6F32 {
     q: [f32; 6],
@@ -279,7 +279,7 @@ impl Workload for Dynamics6F32 {
     fn tick(&mut self) {
         let qd = core::array::from_fn(|k| 0.5 - 0.2 * k as f32);
         let qdd = core::array::from_fn(|k| 1.0 - 0.3 * k as f32);
-        let tau = crate::model::bench_paper_f32::DYNAMICS.torques(&self.q, &qd, &qdd);
+        let tau = crate::fixtures::bench_paper_f32::DYNAMICS.torques(&self.q, &qd, &qdd);
         self.out = tau[1];
         for q in self.q.iter_mut() {
             *q += PHASE_STEP;
@@ -288,59 +288,6 @@ impl Workload for Dynamics6F32 {
 
     fn output(&self) -> f32 {
         self.out
-    }
-}
-
-/// Per-tick cycle statistics (min, max, mean) over a reporting window; the board
-/// binary keeps one per workload and reports it over defmt.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct TickStats {
-    /// Fewest cycles of one tick in the window.
-    pub min_cycles: u32,
-    /// Most cycles of one tick in the window.
-    pub max_cycles: u32,
-    /// Sum of the window's cycles (u64: no overflow for 2^32 ticks of 2^32 cycles).
-    pub sum_cycles: u64,
-    /// Ticks in the window.
-    pub ticks: u32,
-}
-
-impl Default for TickStats {
-    fn default() -> Self {
-        Self::new()
-    }
-}
-
-impl TickStats {
-    /// An empty window.
-    pub const fn new() -> Self {
-        TickStats {
-            min_cycles: u32::MAX,
-            max_cycles: 0,
-            sum_cycles: 0,
-            ticks: 0,
-        }
-    }
-
-    /// Adds one tick's cycles.
-    pub fn record(&mut self, cycles: u32) {
-        self.min_cycles = self.min_cycles.min(cycles);
-        self.max_cycles = self.max_cycles.max(cycles);
-        self.sum_cycles += u64::from(cycles);
-        self.ticks = self.ticks.saturating_add(1);
-    }
-
-    /// Mean cycles per tick (rounded down); 0 for an empty window.
-    pub fn mean_cycles(&self) -> u32 {
-        match self.ticks {
-            0 => 0,
-            n => (self.sum_cycles / u64::from(n)) as u32,
-        }
-    }
-
-    /// Returns the window's statistics and starts a new one.
-    pub fn take(&mut self) -> TickStats {
-        core::mem::take(self)
     }
 }
 
@@ -388,21 +335,5 @@ mod tests {
         let mut w = Dot64::new();
         w.tick();
         assert_eq!(w.output().to_bits(), golden::dot_output(0).to_bits());
-    }
-
-    #[test]
-    fn tick_stats_min_max_mean() {
-        let mut s = TickStats::new();
-        assert_eq!(s.mean_cycles(), 0);
-        for c in [10, 30, 20] {
-            s.record(c);
-        }
-        assert_eq!(
-            (s.min_cycles, s.max_cycles, s.mean_cycles(), s.ticks),
-            (10, 30, 20, 3)
-        );
-        let old = s.take();
-        assert_eq!(old.ticks, 3);
-        assert_eq!(s, TickStats::new());
     }
 }

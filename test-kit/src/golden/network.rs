@@ -1,7 +1,7 @@
 //! Golden inputs of the quantised networks' self-check and of the QEMU suites: a
 //! deterministic stream of raw features from integer hashing and exact f32
 //! arithmetic (no libm), the same on host and target.
-use crate::golden::{hash, unit};
+use super::{hash, unit};
 
 /// Streaming steps of the bit-exact suites (host vs QEMU).
 pub const STEPS: usize = 10_000;

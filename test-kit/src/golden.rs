@@ -2,10 +2,16 @@
 //!
 //! Both sides generate the same inputs from integer arithmetic, run the same
 //! firmware functions on them, and `host-tests` compares the outputs bit for bit.
+//! [`network`]: the input stream of the compiled-in networks (the exporter's
+//! self-check and the QEMU network suites).
 
-use crate::dynamics::{JointModel, RigidBodyModel};
-use crate::lstm::{Lstm, LstmState};
-use crate::math;
+pub mod network;
+
+use firmware::dynamics::{JointModel, RigidBodyModel};
+use firmware::features;
+use firmware::math;
+use firmware::nn::format::InputActivation;
+use firmware::nn::reference::{Lstm, LstmState};
 
 /// Number of points per scalar function.
 pub const MATH_POINTS: usize = 10_000;
@@ -234,8 +240,7 @@ pub const FEATURE_CASES: usize = 500;
 
 /// Values per case of the `features` suite: the friction features, the linear
 /// correction and the presliding states after a walk of angles.
-pub const FEATURE_VALUES: usize =
-    crate::features::FRICTION_FEATURES + 1 + crate::features::PRESLIDING_ELEMENTS;
+pub const FEATURE_VALUES: usize = features::FRICTION_FEATURES + 1 + features::PRESLIDING_ELEMENTS;
 
 /// The `features` suite's case: `drive_inputs` of q in [-2π, 2π), qd in [-2, 2) rad/s
 /// (every fourth case inside the rest band), qdd in [-10, 10), model torque in
@@ -246,11 +251,11 @@ pub fn feature_output(case: usize) -> [f32; FEATURE_VALUES] {
     let seed = 0x0FEA_0000u32 ^ (case as u32).wrapping_mul(5);
     let r = |k: u32| 2.0 * unit(hash(seed + k)) - 1.0;
     let band = if case.is_multiple_of(4) {
-        crate::features::REST_BAND_RAD_S
+        features::REST_BAND_RAD_S
     } else {
         2.0
     };
-    let x = crate::features::drive_inputs(
+    let x = features::drive_inputs(
         2.0 * core::f32::consts::TAU * r(0),
         band * r(1),
         10.0 * r(2),
@@ -260,21 +265,20 @@ pub fn feature_output(case: usize) -> [f32; FEATURE_VALUES] {
             core::array::from_fn(|k| r(4 + k as u32)),
         ),
     );
-    let coefficients: [f32; crate::features::FRICTION_FEATURES] =
+    let coefficients: [f32; features::FRICTION_FEATURES] =
         core::array::from_fn(|k| 0.5 * r(40 + k as u32));
-    let f = crate::features::friction_features(&x);
+    let f = features::friction_features(&x);
     let mut out = [0.0; FEATURE_VALUES];
-    out[..crate::features::FRICTION_FEATURES].copy_from_slice(&f);
-    out[crate::features::FRICTION_FEATURES] =
-        crate::features::linear_correction_nm(&coefficients, &x);
-    let mut presliding = crate::features::Presliding::new();
+    out[..features::FRICTION_FEATURES].copy_from_slice(&f);
+    out[features::FRICTION_FEATURES] = features::linear_correction_nm(&coefficients, &x);
+    let mut presliding = features::Presliding::new();
     let mut q = 2.0 * core::f32::consts::TAU * r(0);
     let mut state = presliding.update(q);
     for k in 0..8 {
         q += 0.02 * r(60 + k);
         state = presliding.update(q);
     }
-    out[crate::features::FRICTION_FEATURES + 1..].copy_from_slice(&state);
+    out[features::FRICTION_FEATURES + 1..].copy_from_slice(&state);
     out
 }
 
@@ -310,7 +314,7 @@ pub fn lstm_network() -> GoldenLstm {
         input_std: core::array::from_fn(|_| 0.5 + next(0.25)),
         w_in: core::array::from_fn(|_| core::array::from_fn(|_| next(k))),
         b_in: core::array::from_fn(|_| next(0.5)),
-        input_activation: crate::lstm::InputActivation::Tanh,
+        input_activation: InputActivation::Tanh,
         w_ih: core::array::from_fn(|_| core::array::from_fn(|_| core::array::from_fn(|_| next(k)))),
         w_hh: core::array::from_fn(|_| core::array::from_fn(|_| core::array::from_fn(|_| next(k)))),
         b_gates: core::array::from_fn(|_| core::array::from_fn(|_| next(0.7))),

@@ -1,6 +1,6 @@
 //! Quantised LSTM kernels: the streaming step of the compensation network
 //! (`input layer (tanh or linear) -> LSTM -> output layer`, the architecture of
-//! `crate::lstm`)
+//! `crate::nn::reference`)
 //! in three precisions, with weights pre-arranged by the exporter
 //! (`model-export export`) for the Cortex-M4:
 //!
@@ -74,56 +74,13 @@
 //! most 8 quads, at most 8 inputs) runs instead the fused assembly kernel
 //! `dsp::lstm_small_i16`, which computes the same bits (the QEMU golden suites prove it).
 
-pub mod act;
-pub mod golden;
-
 use crate::dsp;
-use crate::lstm::InputActivation;
 use crate::math;
-
-/// Fraction bits of the normalised input (Q3.12).
-pub const INPUT_FRAC_BITS: u32 = 12;
-/// Fraction bits of `e`, `h` and the gates (Q0.15).
-pub const ACT_FRAC_BITS: u32 = 15;
-/// Fraction bits of the int16 cell state (Q4.11).
-pub const CELL_FRAC_BITS: u32 = 11;
-/// Index shift of the cell state's tanh (`CELL_FRAC_BITS - act::GRID_FRAC_BITS`).
-pub const CELL_TANH_SHIFT: u32 = CELL_FRAC_BITS - act::GRID_FRAC_BITS;
-
-/// A weight storage format of the integer kernels: how one quad of 4 columns of a
-/// 4-row block is stored and multiplied.
-pub trait WeightFormat {
-    /// One quad of 4 columns of a 4-row block.
-    type Quad: Copy + core::fmt::Debug + PartialEq;
-    /// Name used in reports and generated files (`int16`, `int8`).
-    const NAME: &'static str;
-    /// Largest weight magnitude of the format.
-    const MAX_WEIGHT: i32;
-    /// Whether a quad is two SMLAD-ready int16 pairs per row (the fused kernel's format).
-    const INT16_PAIRS: bool = false;
-    /// `acc[r] + sum_k w[r][k] * x[k]` for the 4 rows of a block.
-    fn dot4(acc: [i32; 4], w: &[Self::Quad], x: &[[u32; 2]]) -> [i32; 4];
-    /// [`Self::dot4`] for every block `b` of a layer: `acc[b] = dot4(bias[b],
-    /// w[b * Q..(b + 1) * Q], x)`, `Q = x.len()`.
-    #[inline(always)]
-    fn matvec4(acc: &mut [[i32; 4]], bias: &[[i32; 4]], w: &[Self::Quad], x: &[[u32; 2]]) {
-        let blocks = acc.iter_mut().zip(bias);
-        for ((a, b), wb) in blocks.zip(w.chunks_exact(x.len().max(1))) {
-            *a = Self::dot4(*b, wb, x);
-        }
-    }
-    /// Packs `w[r][k]` (4 rows x 4 columns, each within `MAX_WEIGHT`).
-    fn pack(w: [[i32; 4]; 4]) -> Self::Quad;
-    /// The quads as int16 pairs when that is the format ([`Self::INT16_PAIRS`]).
-    fn int16_pairs(q: &[Self::Quad]) -> Option<&[[[u32; 4]; 2]]> {
-        let _ = q;
-        None
-    }
-}
-
-/// int16 weights: per quad, the two packed pairs of the 4 rows (`[pair][row]`).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct I16Weights;
+use crate::nn::act;
+use crate::nn::format::{
+    ACT_FRAC_BITS, CELL_IG_SHIFT, CELL_ROUND, CELL_TANH_SHIFT, I8Weights, I16Weights,
+    InputActivation, QuantFormat, QuantState, WeightFormat,
+};
 
 impl WeightFormat for I16Weights {
     type Quad = [[u32; 4]; 2];
@@ -150,10 +107,6 @@ impl WeightFormat for I16Weights {
     }
 }
 
-/// int8 weights: per quad, one word of four int8 weights per row (`dsp::pack_i8`).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct I8Weights;
-
 impl WeightFormat for I8Weights {
     type Quad = [u32; 4];
     const NAME: &'static str = "int8";
@@ -165,24 +118,6 @@ impl WeightFormat for I8Weights {
     fn pack(w: [[i32; 4]; 4]) -> Self::Quad {
         w.map(|row| dsp::pack_i8(row.map(|v| v as i8)))
     }
-}
-
-/// The integer format of one compiled-in network: its weight format, its input
-/// layer's activation and the activation-index shifts of its layers (from the
-/// power-of-two scales the exporter chose). Constants, so that the assembly kernel can
-/// encode them as immediates; each generated model file defines its own `Format` type.
-pub trait QuantFormat {
-    /// Weight storage format.
-    type Weights: WeightFormat;
-    /// Activation after the input layer.
-    const INPUT_ACTIVATION: InputActivation;
-    /// Shift of the input layer's accumulators, `1..=31`: the tanh index shift
-    /// (`P_in + 12 - 9`), or for a linear input layer the requantisation shift to `e`'s
-    /// format (`P_in + 12 - F`).
-    const INPUT_SHIFT: u32;
-    /// Index shift of each gate's accumulators (`P_g + 15 - 9`), order `i, f, g, o`,
-    /// each `1..=31`.
-    const GATE_SHIFTS: [u32; 4];
 }
 
 /// Rounds half away from zero and saturates to int16 (NaN gives 0).
@@ -388,11 +323,6 @@ impl<F: WeightFormat> QuantView<'_, F> {
     }
 }
 
-/// Right shift that brings `i * g` (Q0.30) onto the scale of `c * f` (Q4.26).
-pub const CELL_IG_SHIFT: u32 = 2 * ACT_FRAC_BITS - (CELL_FRAC_BITS + ACT_FRAC_BITS);
-/// Rounding term of the cell update's final `>> 15` (the constant of its SMLABB).
-pub const CELL_ROUND: i32 = 1 << (ACT_FRAC_BITS - 1);
-
 /// One LSTM cell from its four gate accumulators (i, f, g, o) and their index
 /// shifts: updates the int16 Q4.11 cell state `c` (rounded, saturating) and returns
 /// the Q0.15 hidden value (the instruction sequence of `dsp::lstm_small_i16`'s cell,
@@ -446,44 +376,6 @@ pub struct QuantLstm<
     pub out_scale: [[f32; 4]; OB],
     /// f32 offset per output row (bias x output std + output mean).
     pub out_offset: [[f32; 4]; OB],
-}
-
-/// The recurrent state of an integer network: the packed `[e; h]` vector (the `h`
-/// part is the state, the `e` part scratch), the int16 Q4.11 cell state, and the gate
-/// accumulators as scratch (kept here so that a step need not clear `16 * H` bytes
-/// of stack; every step overwrites them before reading). `repr(C)`: the fused kernel
-/// addresses `z` and `c` from one pointer.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct QuantState<const ZQ: usize, const H: usize> {
-    /// Packed `[e; h]`, Q0.15.
-    pub z: [[u32; 2]; ZQ],
-    /// Cell state, Q4.11.
-    pub c: [i16; H],
-    /// Scratch: the last step's gate accumulators (no meaning between steps).
-    pub acc: [[i32; 4]; H],
-}
-
-impl<const ZQ: usize, const H: usize> QuantState<ZQ, H> {
-    /// The zero state a sequence starts from.
-    pub const fn new() -> Self {
-        QuantState {
-            z: [[0; 2]; ZQ],
-            c: [0; H],
-            acc: [[0; 4]; H],
-        }
-    }
-
-    /// Forgets the past: back to the zero state.
-    pub fn reset(&mut self) {
-        *self = Self::new();
-    }
-}
-
-impl<const ZQ: usize, const H: usize> Default for QuantState<ZQ, H> {
-    fn default() -> Self {
-        Self::new()
-    }
 }
 
 impl<
@@ -785,9 +677,9 @@ impl InputLayer for LinearInput {
 /// The f32 network of fixed sizes in the exporter's layout: `I` inputs, input layer
 /// of `E = 4 * EB` rows with the activation `A` ([`InputLayer`]), `H` cells over
 /// `Z = E + H` columns (`[e; h]`), `O` outputs in `OB` blocks. Each block stores its 4 rows column-interleaved (`[k][row]`);
-/// every row sums left to right in f32 as in `crate::lstm`; sigmoid and tanh are
+/// every row sums left to right in f32 as in `crate::nn::reference`; sigmoid and tanh are
 /// the f32-only `math::sigmoid_fast` / `math::tanh_fast` (within 2e-7 of libm's, so
-/// the step tracks `crate::lstm` to about 1e-7, not bit for bit).
+/// the step tracks `crate::nn::reference` to about 1e-7, not bit for bit).
 #[derive(Clone, Copy, Debug)]
 pub struct F32Lstm<
     const I: usize,
