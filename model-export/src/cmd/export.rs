@@ -2,7 +2,7 @@
 use crate::args::choice::named;
 use anyhow::{Context, Result, bail};
 use compnet::model::LstmModel;
-use firmware::lstm::LstmDims;
+use firmware::nn::reference::LstmDims;
 use fw_export::*;
 use robot::RobotSource;
 use robot::dynamics::firmware_model::FirmwareModel;
