@@ -1,0 +1,71 @@
+//! The cascade's PID against values worked out by hand from its specification:
+//! `feedforward + kp e + ki int(e) - kd d(measurement)/dt`, the derivative on the
+//! measurement through `d += alpha (raw - d)`, none on the first step after a reset,
+//! the integral bounded by the limit.
+
+use firmware::control::Pid;
+
+const DT: f32 = 0.01;
+
+fn close(a: f32, b: f32) -> bool {
+    (a - b).abs() <= 1e-5 * b.abs().max(1.0)
+}
+
+#[test]
+fn proportional_and_feedforward() {
+    let mut pid = Pid::new(2.0, 0.0, 0.0, 1.0, 10.0);
+    // 0.5 + 2 * (1.0 - 0.25)
+    assert!(close(pid.update(1.0, 0.25, 0.5, DT), 2.0));
+    assert!(close(pid.update(-1.0, 0.5, 0.0, DT), -3.0));
+    assert_eq!(pid.integral(), 0.0);
+}
+
+#[test]
+fn the_integral_grows_by_ki_e_dt_and_is_its_output_share() {
+    let mut pid = Pid::new(0.0, 10.0, 0.0, 1.0, 10.0);
+    for n in 1..=5 {
+        let out = pid.update(1.0, 0.0, 0.0, DT);
+        // ki * e * dt = 0.1 per step.
+        assert!(close(pid.integral(), 0.1 * n as f32), "{}", pid.integral());
+        assert!(close(out, 0.1 * n as f32), "{out}");
+    }
+    // A negative error integrates down.
+    let out = pid.update(0.0, 2.0, 0.0, DT);
+    assert!(close(pid.integral(), 0.3) && close(out, 0.3), "{out}");
+}
+
+#[test]
+fn the_derivative_acts_on_the_measurement_through_the_filter() {
+    // Unfiltered: the measurement rises 0.1 in one step of 10 ms: 10 per second.
+    let mut pid = Pid::new(0.0, 0.0, 0.5, 1.0, 100.0);
+    assert_eq!(pid.update(0.0, 0.0, 0.0, DT), 0.0);
+    assert!(close(pid.update(0.1, 0.1, 0.0, DT), -5.0));
+    // Falling: +5.
+    assert!(close(pid.update(0.0, 0.0, 0.0, DT), 5.0));
+    // Filtered with alpha 0.25: d = 2.5, then 2.5 + 0.25 (0 - 2.5) = 1.875.
+    let mut pid = Pid::new(0.0, 0.0, 0.5, 0.25, 100.0);
+    pid.update(0.0, 0.0, 0.0, DT);
+    assert!(close(pid.update(0.1, 0.1, 0.0, DT), -1.25));
+    assert!(close(pid.update(0.1, 0.1, 0.0, DT), -0.9375));
+    // Another step length: 0.1 in 20 ms is 5 per second.
+    let mut pid = Pid::new(0.0, 0.0, 1.0, 1.0, 100.0);
+    pid.update(0.3, 0.3, 0.0, 0.02);
+    assert!(close(pid.update(0.4, 0.4, 0.0, 0.02), -5.0));
+}
+
+#[test]
+fn reset_empties_the_integrator_and_the_derivative_history() {
+    let mut pid = Pid::new(0.0, 10.0, 0.5, 0.5, 10.0);
+    for _ in 0..3 {
+        pid.update(1.0, 0.0, 0.0, DT);
+    }
+    pid.update(1.0, 0.2, 0.0, DT);
+    assert!(pid.integral() > 0.3);
+    pid.reset();
+    assert_eq!(pid.integral(), 0.0);
+    // First step after the reset: no derivative kick from the old measurement, no
+    // old filter state, no old integral (error 0).
+    assert_eq!(pid.update(5.0, 5.0, 0.0, DT), 0.0);
+    // The next step's derivative starts from zero: 0.5 * (0.5 * 10) = 2.5.
+    assert!(close(pid.update(5.1, 5.1, 0.0, DT), -2.5));
+}
