@@ -69,3 +69,43 @@ fn reset_empties_the_integrator_and_the_derivative_history() {
     // The next step's derivative starts from zero: 0.5 * (0.5 * 10) = 2.5.
     assert!(close(pid.update(5.1, 5.1, 0.0, DT), -2.5));
 }
+
+#[test]
+fn the_integrator_holds_while_the_error_pushes_further_into_the_limit() {
+    // kp e alone (10) is beyond the limit (1): with e > 0 at the upper limit and e < 0
+    // at the lower one the integral holds.
+    let mut pid = Pid::new(10.0, 10.0, 0.0, 1.0, 1.0);
+    for _ in 0..5 {
+        assert_eq!(pid.update(1.0, 0.0, 0.0, DT), 1.0);
+        assert_eq!(pid.integral(), 0.0);
+        assert_eq!(pid.update(-1.0, 0.0, 0.0, DT), -1.0);
+        assert_eq!(pid.integral(), 0.0);
+    }
+    // Saturated by the feedforward but with an error that pulls back: it integrates
+    // (ki e dt = 10 * -0.1 * 0.01 = -0.01 per step), and likewise at the lower limit.
+    let mut pid = Pid::new(1.0, 10.0, 0.0, 1.0, 1.0);
+    pid.update(0.0, 0.1, 5.0, DT);
+    assert!(close(pid.integral(), -0.01), "{}", pid.integral());
+    pid.update(0.1, 0.0, -5.0, DT);
+    assert!(close(pid.integral(), 0.0), "{}", pid.integral());
+    pid.update(0.1, 0.0, -5.0, DT);
+    assert!(close(pid.integral(), 0.01), "{}", pid.integral());
+    // Within the limit it integrates whatever the sign.
+    let mut pid = Pid::new(0.1, 10.0, 0.0, 1.0, 1.0);
+    pid.update(1.0, 0.0, 0.0, DT);
+    pid.update(-1.0, 0.0, 0.0, DT);
+    pid.update(-1.0, 0.0, 0.0, DT);
+    assert!(close(pid.integral(), -0.1), "{}", pid.integral());
+}
+
+#[test]
+fn an_output_exactly_at_the_limit_still_integrates() {
+    // ff 0.25 + kp e 0.5 + ki e dt 0.25 = 1.0, the limit, exactly (all binary
+    // fractions): not beyond it, so the integral takes the step.
+    let mut pid = Pid::new(1.0, 1.0, 0.0, 1.0, 1.0);
+    assert_eq!(pid.update(0.5, 0.0, 0.25, 0.5), 1.0);
+    assert_eq!(pid.integral(), 0.25);
+    let mut pid = Pid::new(1.0, 1.0, 0.0, 1.0, 1.0);
+    assert_eq!(pid.update(-0.5, 0.0, -0.25, 0.5), -1.0);
+    assert_eq!(pid.integral(), -0.25);
+}
