@@ -109,3 +109,64 @@ fn an_output_exactly_at_the_limit_still_integrates() {
     assert_eq!(pid.update(-0.5, 0.0, -0.25, 0.5), -1.0);
     assert_eq!(pid.integral(), -0.25);
 }
+
+#[test]
+fn a_lowered_limit_bounds_the_integral_even_with_zero_error() {
+    for sign in [1.0f32, -1.0] {
+        let mut pid = Pid::new(0.0, 10.0, 0.0, 1.0, 1.0);
+        for _ in 0..5 {
+            pid.update(sign, 0.0, 0.0, DT);
+        }
+        assert!(close(pid.integral(), 0.5 * sign));
+        // The limit drops to 0.2 while the feedforward saturates the output and the
+        // error is zero: the integral is bounded by the new limit.
+        pid.output_limit = 0.2;
+        assert_eq!(pid.update(0.0, 0.0, 5.0 * sign, DT), 0.2 * sign);
+        assert_eq!(pid.integral(), 0.2 * sign);
+    }
+}
+
+#[test]
+fn a_step_of_zero_length_does_not_poison_the_derivative() {
+    // dt = 0 with a moving measurement gives an infinite derivative: the controller
+    // starts afresh, and the next ordinary steps are those of a fresh controller.
+    let mut pid = Pid::new(1.0, 0.0, 0.5, 0.5, 100.0);
+    pid.update(0.0, 0.0, 0.0, DT);
+    let out = pid.update(0.0, 0.1, 0.0, 0.0);
+    assert!(out.is_finite());
+    let mut fresh = Pid::new(1.0, 0.0, 0.5, 0.5, 100.0);
+    for m in [0.2, 0.3, 0.3] {
+        assert_eq!(pid.update(0.0, m, 0.0, DT), fresh.update(0.0, m, 0.0, DT));
+    }
+    // Fresh: first step -0.2 (no derivative), then -0.3 - 0.5 * 0.5 * 10 = -2.8.
+    let mut again = Pid::new(1.0, 0.0, 0.5, 0.5, 100.0);
+    assert!(close(again.update(0.0, 0.2, 0.0, DT), -0.2));
+    assert!(close(again.update(0.0, 0.3, 0.0, DT), -2.8));
+}
+
+#[test]
+fn the_cascade_reset_empties_both_integrators() {
+    use firmware::control::{CascadeConfig, JointReference, PositionVelocityCascade};
+    let mut c = PositionVelocityCascade::new(CascadeConfig {
+        rate_hz: 1000.0,
+        position_kp: 1.0,
+        position_ki: 5.0,
+        position_kd: 0.0,
+        max_velocity_rad_s: 3.0,
+        velocity_kp: 0.1,
+        velocity_ki: 5.0,
+        velocity_kd: 0.0,
+        max_current_a: 10.0,
+        velocity_filter_alpha: 1.0,
+    });
+    let r = JointReference {
+        q_rad: 0.5,
+        ..Default::default()
+    };
+    for _ in 0..20 {
+        c.step(&r, 0.0, 0.0);
+    }
+    assert!(c.position.integral() > 0.0 && c.velocity.integral() > 0.0);
+    c.reset();
+    assert_eq!((c.position.integral(), c.velocity.integral()), (0.0, 0.0));
+}
