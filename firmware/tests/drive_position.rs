@@ -94,3 +94,21 @@ fn the_velocity_estimate_settles_on_the_joint_speed() {
         );
     }
 }
+
+#[test]
+fn a_phase_current_trips_the_bridge_only_above_the_trip_level() {
+    for phase in 0..2 {
+        for (amps, trips) in [(20.0f32, false), (20.0f32.next_up(), true)] {
+            let mut drive = JointDrive::new(config());
+            let mut s = sample(0.3);
+            s.phase_current_a[phase] = amps;
+            let out = drive.pwm_tick(&s);
+            assert_eq!(
+                drive.latched_faults().contains(FaultFlags::OVERCURRENT),
+                trips,
+                "phase {phase}, {amps} A"
+            );
+            assert_eq!(out.bridge_enabled, !trips, "phase {phase}, {amps} A");
+        }
+    }
+}
