@@ -3,10 +3,16 @@
 //! mutants of it, 10 000 cases per target by default. No case may panic or take longer
 //! than `fuzz::HANG_AFTER`; a rejected network leaves `import`'s existing output as it was.
 //!
-//! A longer run: `FUZZ_CASES=1000000 cargo test --release -p model-export --test
-//! fuzz_parsers -- --nocapture` (`FUZZ_SEED` picks another mutation sequence).
+//! A longer run: `FUZZ_CASES=1000000 TMPDIR=/dev/shm cargo test --release -p
+//! model-export --test fuzz_parsers -- --nocapture` (`FUZZ_SEED` picks another mutation
+//! sequence; the file targets rewrite one scratch file per case, which ext4 flushes on
+//! close, so a tmpfs scratch folder runs them several times faster). A case that has
+//! not returned after `WATCHDOG_AFTER` ends the run with its input saved.
 use model_export::fuzz::{self, FuzzReport};
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
 
 fn cases() -> u64 {
     std::env::var("FUZZ_CASES")
@@ -29,25 +35,97 @@ fn corpus(target: &str) -> Vec<Vec<u8>> {
     fuzz::read_corpus(&dir).unwrap_or_else(|e| panic!("{}: {e}", dir.display()))
 }
 
-/// Runs `target` on its corpus and mutants; prints the figures and asserts no panic
-/// and no hang.
-fn check(name: &str, target: impl FnMut(&[u8])) -> FuzzReport {
+/// A case still running after this long never returns in time: the watchdog writes it
+/// to a file, names the case and ends the test process with a failure (a case that
+/// returns after more than `fuzz::HANG_AFTER` is counted as a hang by `run_bounded`).
+const WATCHDOG_AFTER: Duration = Duration::from_secs(60);
+
+/// The case in progress, watched by [`watchdog`].
+struct CaseInProgress {
+    index: u64,
+    started: Option<Instant>,
+    input: Vec<u8>,
+}
+
+/// Polls `current` until `done`; a case older than [`WATCHDOG_AFTER`] is a hang that
+/// would block the run for ever: its input goes to a file in the temp folder, the
+/// target, case and seed are printed, and the process exits with status 101.
+fn watchdog(name: String, current: Arc<Mutex<CaseInProgress>>, done: Arc<AtomicBool>) {
+    while !done.load(Ordering::Relaxed) {
+        std::thread::sleep(Duration::from_millis(200));
+        let c = current.lock().unwrap_or_else(|e| e.into_inner());
+        if c.started.is_some_and(|t| t.elapsed() > WATCHDOG_AFTER) {
+            let path = std::env::temp_dir().join(format!("fuzz-hang-{name}-{}.bin", c.index));
+            let saved = std::fs::write(&path, &c.input).map(|_| path.display().to_string());
+            eprintln!(
+                "fuzz {name}: case {} (seed {}) still running after {WATCHDOG_AFTER:?}: a hang; input: {saved:?}",
+                c.index,
+                seed()
+            );
+            std::process::exit(101);
+        }
+    }
+}
+
+/// Runs `target` on its corpus and mutants under [`watchdog`]; prints the figures and
+/// asserts no panic and no hang.
+fn check(name: &str, mut target: impl FnMut(&[u8])) -> FuzzReport {
     let seeds = corpus(name);
-    let r = fuzz::run_bounded(name, &seeds, cases(), seed(), target);
+    let current = Arc::new(Mutex::new(CaseInProgress {
+        index: 0,
+        started: None,
+        input: Vec::new(),
+    }));
+    let done = Arc::new(AtomicBool::new(false));
+    let dog = {
+        let (name, current, done) = (name.to_string(), current.clone(), done.clone());
+        std::thread::spawn(move || watchdog(name, current, done))
+    };
+    let wall = Instant::now();
+    let mut index = 0;
+    let mut slowest = (Duration::ZERO, 0, Vec::new());
+    let r = fuzz::run_bounded(name, &seeds, cases(), seed(), |d| {
+        {
+            let mut c = current.lock().unwrap_or_else(|e| e.into_inner());
+            (c.index, c.started) = (index, Some(Instant::now()));
+            c.input.clear();
+            c.input.extend_from_slice(d);
+        }
+        index += 1;
+        // A panic skips the lines below; the next case restarts the clock.
+        let start = Instant::now();
+        target(d);
+        let took = start.elapsed();
+        if took > slowest.0 {
+            slowest = (took, index - 1, d.to_vec());
+        }
+        current.lock().unwrap_or_else(|e| e.into_inner()).started = None;
+    });
+    let wall_s = wall.elapsed().as_secs_f64();
+    done.store(true, Ordering::Relaxed);
+    dog.join().unwrap();
     println!(
-        "fuzz {name}: {} cases ({} seeds), {} panics, {} hangs (> {:?}), slowest {:.3} s",
+        "fuzz {name}: {} cases ({} seeds), seed {}, {} panics, {} hangs (> {:?}), slowest {:.3} s, wall {:.1} s",
         r.cases,
         seeds.len(),
+        seed(),
         r.panics,
         r.hangs,
         fuzz::HANG_AFTER,
-        r.slowest_s
+        r.slowest_s,
+        wall_s
     );
+    let slow_input = (r.hangs > 0).then(|| {
+        let path = std::env::temp_dir().join(format!("fuzz-slowest-{name}-{}.bin", slowest.1));
+        std::fs::write(&path, &slowest.2).map(|_| path.display().to_string())
+    });
     assert_eq!(
         (r.panics, r.hangs),
         (0, 0),
-        "{name}: first panicking input: {:?}",
-        r.first_panic.as_ref().map(|d| String::from_utf8_lossy(d))
+        "{name}: first panicking input: {:?}; slowest case {} ({:?}), input: {slow_input:?}",
+        r.first_panic.as_ref().map(|d| String::from_utf8_lossy(d)),
+        slowest.1,
+        slowest.0
     );
     assert!(r.cases >= cases().max(seeds.len() as u64));
     r
@@ -133,4 +211,59 @@ fn fuzz_safetensors() {
         fuzz::safetensors_target(d);
         import_keeps_output_on_error(dir.path(), d);
     });
+}
+
+/// Found by the long run: a network whose weights reach 3e38 or whose input standard
+/// deviation is subnormal parsed, and its outputs overflowed to infinity or NaN.
+#[test]
+fn a_network_with_huge_weights_or_a_subnormal_std_is_refused() {
+    use model_export::nn::io::parse_model;
+    let seeds: PathBuf = [
+        env!("CARGO_MANIFEST_DIR"),
+        "..",
+        "fuzz",
+        "corpus",
+        "safetensors",
+    ]
+    .iter()
+    .collect();
+    for (file, tensor) in [
+        (
+            "shifted_weights_subnormal_std.safetensors",
+            "lstm.weight_ih_l0",
+        ),
+        ("shifted_weights_3e38.safetensors", "input.weight"),
+    ] {
+        let bytes = std::fs::read(seeds.join(file)).unwrap();
+        let e = parse_model(&bytes).unwrap_err().to_string();
+        assert!(
+            e.contains(tensor) && e.contains("must be <="),
+            "{file}: {e}"
+        );
+    }
+    // One value at a time, on the fixture that parses.
+    let good = parse_model(&std::fs::read(seeds.join("torch_lstm.safetensors")).unwrap()).unwrap();
+    let mut m = good.clone();
+    m.input_std[2] = 2.3e-41;
+    let e = m.validate().unwrap_err().to_string();
+    assert!(
+        e.contains("norm.input_std") && e.contains("element 2"),
+        "{e}"
+    );
+    let mut m = good.clone();
+    m.w_ih[7] = -3e38;
+    let e = m.validate().unwrap_err().to_string();
+    assert!(
+        e.contains("lstm.weight_ih_l0") && e.contains("element 7"),
+        "{e}"
+    );
+    let mut m = good.clone();
+    m.output_mean[1] = 1e7;
+    assert!(m.validate().is_err());
+    // Values at the bounds still parse, and a shrunk output (tiny std) is a network.
+    let mut m = good;
+    m.w_ih[7] = model_export::nn::model::MAX_ABS_NETWORK_VALUE;
+    m.input_std[2] = model_export::nn::model::MIN_INPUT_STD;
+    m.output_std[0] = f32::MIN_POSITIVE;
+    m.validate().unwrap();
 }

@@ -726,3 +726,18 @@ fn outputs_honour_the_umask_of_the_process() {
     let mode = std::fs::metadata(&out).unwrap().permissions().mode() & 0o777;
     assert_eq!(mode, 0o640, "{mode:o}");
 }
+
+#[test]
+fn a_long_gap_between_two_log_rows_is_an_error_not_an_interpolated_log() {
+    // Found by the long fuzz run: one row 65535 s later was interpolated into 6.5 M
+    // grid samples (seconds of work, 0.5 GB). Here one row 100 s later: 10 000 steps.
+    let (e, wrote) = torque_on_log("gap.csv", |k| {
+        let t = k as f64 * 0.01 + if k >= 200 { 100.0 } else { 0.0 };
+        (t, 0.1 * t.sin())
+    });
+    assert!(
+        e.contains("gap.csv") && e.contains("a gap of") && e.contains("sample 200"),
+        "{e}"
+    );
+    assert!(!wrote);
+}

@@ -13,6 +13,14 @@ use rand_chacha::ChaCha8Rng;
 /// 64, so a mistyped size is an error naming the limit, not a huge allocation.
 pub const MAX_LAYER_WIDTH: usize = 1024;
 
+/// Largest |weight|, |bias|, |mean| and standard deviation a network may hold: trained
+/// values are a few units, and within this bound no sum of a step can overflow `f32`.
+pub const MAX_ABS_NETWORK_VALUE: f32 = 1e6;
+
+/// Smallest input standard deviation (the trainer's floor): a smaller one scales an
+/// input to infinity.
+pub const MIN_INPUT_STD: f32 = 1e-12;
+
 /// A trained (or imported) compensation network with everything needed to run it.
 ///
 /// Weight layouts are PyTorch's: `nn.Linear.weight` `[out, in]`, `nn.LSTM` `weight_ih_l0`
@@ -116,6 +124,20 @@ impl LstmModel {
             if let Some(k) = v.iter().position(|&x| x <= 0.0) {
                 bail!("tensor `{name}`: element {k} is {} (must be > 0)", v[k]);
             }
+        }
+        for (name, v) in self.tensors() {
+            if let Some(k) = v.iter().position(|x| x.abs() > MAX_ABS_NETWORK_VALUE) {
+                bail!(
+                    "tensor `{name}`: element {k} is {} (|value| must be <= {MAX_ABS_NETWORK_VALUE:e})",
+                    v[k]
+                );
+            }
+        }
+        if let Some(k) = self.input_std.iter().position(|&x| x < MIN_INPUT_STD) {
+            bail!(
+                "tensor `norm.input_std`: element {k} is {:e} (must be >= {MIN_INPUT_STD:e})",
+                self.input_std[k]
+            );
         }
         if !self.linear.is_empty() {
             let o = self.dims.output;

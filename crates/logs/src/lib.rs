@@ -20,7 +20,9 @@ use sha2::{Digest, Sha256};
 use std::fmt;
 use std::path::{Path, PathBuf};
 
-pub use preprocess::{MAX_GRID_SAMPLES, PreprocessOptions, Samples, preprocess};
+pub use preprocess::{
+    MAX_GAP_GRID_STEPS, MAX_GRID_SAMPLES, PreprocessOptions, Samples, preprocess,
+};
 pub use rosbag::BagOptions;
 
 /// One column of a log: by header name or by 1-based index.

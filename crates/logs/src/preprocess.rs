@@ -51,6 +51,10 @@ impl Default for PreprocessOptions {
 /// Most samples a log's uniform grid may have (10 M: 28 h at 100 Hz, 2.8 h at 1 kHz).
 pub const MAX_GRID_SAMPLES: usize = 10_000_000;
 
+/// Longest time step between two log rows, in steps of the uniform grid (10 s at
+/// 100 Hz): a longer gap would be filled by interpolation, not by measurement.
+pub const MAX_GAP_GRID_STEPS: usize = 1000;
+
 /// Preprocessed samples on a uniform grid: `x[joint][sample]`.
 #[derive(Debug, Clone)]
 pub struct Samples {
@@ -140,6 +144,22 @@ pub fn preprocess(raw: &RawLog, opt: &PreprocessOptions) -> Result<Samples, LogE
             format!(
                 "{span} s at {fs} Hz needs more than {MAX_GRID_SAMPLES} samples on the uniform \
                  grid (largest time step: {jump} s, after t = {} s, sample {})",
+                t[k],
+                k + 1
+            ),
+        ));
+    }
+    if let Some(k) = t
+        .windows(2)
+        .position(|w| w[1] - w[0] > MAX_GAP_GRID_STEPS as f64 * dt)
+    {
+        return Err(err(
+            raw.lines.get(k + 1).copied(),
+            Some("time"),
+            format!(
+                "a gap of {} s after t = {} s (sample {}) is longer than {MAX_GAP_GRID_STEPS} \
+                 grid steps of {dt} s: the log would be filled by interpolation",
+                t[k + 1] - t[k],
                 t[k],
                 k + 1
             ),
