@@ -1,8 +1,8 @@
 //! `model-export export`: the committed golden model files are what the exporter
 //! writes today (deterministic, in sync); quantised outputs track f32; bad input is
 //! refused with a clear error and leaves no file behind.
-use firmware::features::DRIVE_INPUTS_PER_JOINT;
 use compnet::model::LstmModel;
+use firmware::features::DRIVE_INPUTS_PER_JOINT;
 use firmware::nn::reference::LstmDims;
 use fw_export::{ExportError, Exported, Placement, Precision, WeightsIn};
 use model_export::cmd::export::ExportArgs;

@@ -217,7 +217,7 @@ fn fuzz_safetensors() {
 /// deviation is subnormal parsed, and its outputs overflowed to infinity or NaN.
 #[test]
 fn a_network_with_huge_weights_or_a_subnormal_std_is_refused() {
-    use model_export::nn::io::parse_model;
+    use compnet::io::parse_model;
     let seeds: PathBuf = [
         env!("CARGO_MANIFEST_DIR"),
         "..",
@@ -262,8 +262,8 @@ fn a_network_with_huge_weights_or_a_subnormal_std_is_refused() {
     assert!(m.validate().is_err());
     // Values at the bounds still parse, and a shrunk output (tiny std) is a network.
     let mut m = good;
-    m.w_ih[7] = model_export::nn::model::MAX_ABS_NETWORK_VALUE;
-    m.input_std[2] = model_export::nn::model::MIN_INPUT_STD;
+    m.w_ih[7] = compnet::model::MAX_ABS_NETWORK_VALUE;
+    m.input_std[2] = compnet::model::MIN_INPUT_STD;
     m.output_std[0] = f32::MIN_POSITIVE;
     m.validate().unwrap();
 }

@@ -16,8 +16,8 @@ use firmware::nn::act;
 use firmware::nn::format::{
     ACT_FRAC_BITS, I8Weights, I16Weights, INPUT_FRAC_BITS, InputActivation, WeightFormat,
 };
-use robot::dynamics::firmware_model::FirmwareModel;
 use firmware::nn::kernels::{F32Dims, F32View, QuantDims, QuantView};
+use robot::dynamics::firmware_model::FirmwareModel;
 use sha2::{Digest, Sha256};
 use std::fmt::Write as _;
 

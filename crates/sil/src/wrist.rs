@@ -724,6 +724,21 @@ pub struct ModeReport {
     pub joints: Vec<WristJointReport>,
 }
 
+/// `sil --json`: the wrist runs and their setup.
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+pub struct WristReport {
+    /// One line describing the setup.
+    pub title: String,
+    /// Simulated time [s].
+    pub duration_s: f64,
+    /// Compensator rate [Hz].
+    pub compensator_hz: f64,
+    /// Seed of the sensor noise.
+    pub seed: u64,
+    /// One per feedforward mode.
+    pub results: Vec<ModeReport>,
+}
+
 /// The Markdown table of a set of runs (with the LSTM rows' change against model only).
 pub fn markdown_table(reports: &[ModeReport]) -> String {
     use std::fmt::Write as _;

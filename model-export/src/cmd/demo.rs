@@ -18,7 +18,7 @@ use fw_export::AccuracyRow;
 use identify::model_file::ModelFile;
 use serde::Serialize;
 use serde_json::{Value, json};
-use sil::wrist::ModeReport;
+use sil::wrist::WristReport;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -587,7 +587,7 @@ impl Report {
             read_report(&out.join("model/evaluate_feedforward.json"))?;
         let sil_md = std::fs::read_to_string(out.join("sil/sil.md"))
             .with_context(|| format!("reading {}", out.join("sil/sil.md").display()))?;
-        let sil_json: Vec<ModeReport> = read_report(&out.join("sil/sil.json"))?;
+        let sil_json: WristReport = read_report(&out.join("sil/sil.json"))?;
         let accuracy: Vec<AccuracyRow> = read_report(&out.join("model/accuracy.json"))?;
         let first_run = |e: &EvaluationReport, name: &str| {
             e.data

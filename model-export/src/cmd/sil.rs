@@ -3,7 +3,7 @@ use anyhow::{bail, ensure};
 use plant_sim::PlantParameters;
 use robot::RobotSource;
 use sil::wrist::{
-    J, ModeReport, WristFeedforward, WristJointReport, WristLstm, WristSetup,
+    J, ModeReport, WristFeedforward, WristJointReport, WristLstm, WristReport, WristSetup,
     identified_wrist_model, markdown_table, run_wrist,
 };
 
@@ -142,13 +142,13 @@ pub fn run(a: &SilArgs) -> anyhow::Result<()> {
     let md = format!("{title}\n\n{}", markdown_table(&reports));
     print!("{md}");
     let json = match &a.json {
-        Some(_) => Some(serde_json::to_string_pretty(&serde_json::json!({
-            "title": title,
-            "duration_s": setup.duration_s,
-            "compensator_hz": a.compensator_hz,
-            "seed": a.seed,
-            "results": reports,
-        }))?),
+        Some(_) => Some(serde_json::to_string_pretty(&WristReport {
+            title: title.clone(),
+            duration_s: setup.duration_s,
+            compensator_hz: a.compensator_hz,
+            seed: a.seed,
+            results: reports.clone(),
+        })?),
         None => None,
     };
     // The Markdown and the JSON table: both or neither.

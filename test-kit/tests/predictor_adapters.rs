@@ -6,10 +6,9 @@
 use firmware::control::{
     JointState, LstmPredictor, PredictorInput, TorqueNetwork, TorquePredictor,
 };
-use firmware::model::{
-    FeaturePreset, bench_paper_f32 as f32_model, bench_paper_int16 as i16_model,
-};
-use firmware::quant::F32State;
+use firmware::nn::format::FeaturePreset;
+use firmware::nn::kernels::F32State;
+use test_kit::fixtures::{bench_paper_f32 as f32_model, bench_paper_int16 as i16_model};
 
 /// Six joints in motion: reference and measured fields all different.
 fn moving_input(k: usize) -> PredictorInput<6> {
