@@ -729,6 +729,9 @@ pub struct ExportMeta {
     pub self_check_steps: usize,
     /// Where the model's arrays live on the target, and why.
     pub placement: PlacementChoice,
+    /// Drive profile of each compensated joint, in `joints` order (the robot
+    /// description's, `JointProfile::BOARD` where it gives none).
+    pub profiles: Vec<firmware::control::JointProfile>,
 }
 
 /// The `link_section` attribute of the model's arrays placed in SRAM: an input section
@@ -1187,6 +1190,102 @@ pub fn golden_inputs(n_inputs: usize, steps: usize) -> Vec<Vec<f32>> {
         .collect()
 }
 
+/// Writes `JOINT_PROFILES`: one `JointProfile` literal per compensated joint (numbers
+/// only, each f32 written so that it reads back to the same bits).
+fn write_profiles(s: &mut String, profiles: &[firmware::control::JointProfile]) {
+    use firmware::control::BusClock;
+    let _ = writeln!(
+        s,
+        "/// Drive profile of each compensated joint, in `JOINT_INDICES` order: motor, gear,\n\
+         /// limits, gains and bus settings (`control::JointProfile`)."
+    );
+    let _ = writeln!(
+        s,
+        "pub const JOINT_PROFILES: [crate::control::JointProfile; {}] = [",
+        profiles.len()
+    );
+    for p in profiles {
+        let m = &p.motor;
+        let c = &p.cascade;
+        let l = &p.state_limits;
+        let bus_clock = match p.bus_clock {
+            BusClock::Synchronised => "crate::control::BusClock::Synchronised".to_string(),
+            BusClock::FreeRunning { max_rate_error_ppm } => format!(
+                "crate::control::BusClock::FreeRunning {{ max_rate_error_ppm: {max_rate_error_ppm} }}"
+            ),
+        };
+        let _ = writeln!(s, "    crate::control::JointProfile {{");
+        let _ = writeln!(
+            s,
+            "        motor: crate::control::MotorParameters {{ pole_pairs: {}, phase_resistance_ohm: {}, phase_inductance_h: {}, flux_linkage_wb: {} }},",
+            m.pole_pairs,
+            f32_lit(m.phase_resistance_ohm),
+            f32_lit(m.phase_inductance_h),
+            f32_lit(m.flux_linkage_wb)
+        );
+        let _ = writeln!(
+            s,
+            "        gear_ratio: {}, gear_efficiency: {}, encoder_offset_rad: {},",
+            f32_lit(p.gear_ratio),
+            f32_lit(p.gear_efficiency),
+            f32_lit(p.encoder_offset_rad)
+        );
+        let _ = writeln!(
+            s,
+            "        cascade: crate::control::CascadeConfig {{ rate_hz: {}, position_kp: {}, position_ki: {}, position_kd: {}, max_velocity_rad_s: {}, velocity_kp: {}, velocity_ki: {}, velocity_kd: {}, max_current_a: {}, velocity_filter_alpha: {} }},",
+            f32_lit(c.rate_hz),
+            f32_lit(c.position_kp),
+            f32_lit(c.position_ki),
+            f32_lit(c.position_kd),
+            f32_lit(c.max_velocity_rad_s),
+            f32_lit(c.velocity_kp),
+            f32_lit(c.velocity_ki),
+            f32_lit(c.velocity_kd),
+            f32_lit(c.max_current_a),
+            f32_lit(c.velocity_filter_alpha)
+        );
+        let _ = writeln!(
+            s,
+            "        max_current_a: {}, overcurrent_trip_a: {}, bus_min_v: {}, bus_max_v: {}, max_abs_q_ref_rad: {},",
+            f32_lit(p.max_current_a),
+            f32_lit(p.overcurrent_trip_a),
+            f32_lit(p.bus_min_v),
+            f32_lit(p.bus_max_v),
+            f32_lit(p.max_abs_q_ref_rad)
+        );
+        let _ = writeln!(
+            s,
+            "        state_limits: crate::control::StateLimits {{ max_abs_q_rad: {}, max_abs_qd_rad_s: {}, max_abs_qdd_rad_s2: {}, max_abs_tau_nm: {} }},",
+            f32_lit(l.max_abs_q_rad),
+            f32_lit(l.max_abs_qd_rad_s),
+            f32_lit(l.max_abs_qdd_rad_s2),
+            f32_lit(l.max_abs_tau_nm)
+        );
+        let _ = writeln!(
+            s,
+            "        watchdog_ticks: {}, max_message_age_ticks: {}, bus_clock: {bus_clock},",
+            p.watchdog_ticks, p.max_message_age_ticks
+        );
+        let _ = writeln!(
+            s,
+            "        max_torque_nm: {}, max_torque_rate_nm_s: {}, max_lstm_correction_nm: {}, warmup_ticks: {}, lstm_retry_ticks: {},",
+            f32_lit(p.max_torque_nm),
+            f32_lit(p.max_torque_rate_nm_s),
+            f32_lit(p.max_lstm_correction_nm),
+            p.warmup_ticks,
+            p.lstm_retry_ticks
+        );
+        let _ = writeln!(
+            s,
+            "        feedforward_max_current_a: {}, bus_baud: {},",
+            f32_lit(p.feedforward_max_current_a),
+            p.bus_baud
+        );
+        let _ = writeln!(s, "    }},");
+    }
+    let _ = writeln!(s, "];");
+}
+
 /// Renders the whole generated file.
 pub fn render(
     m: &LstmModel,
@@ -1294,6 +1393,7 @@ pub fn render(
         "pub const CONTROL_RATE_HZ: u32 = {};",
         meta.control_rate_hz
     );
+    write_profiles(s, &meta.profiles);
     match net {
         Exported::F32(n) => write_f32(s, &network_section, n),
         Exported::Int16(n) => write_quant(s, &network_section, n, "I16Weights", quads_i16),
@@ -1568,6 +1668,37 @@ pub mod cli {
             .collect()
     }
 
+    /// The drive profiles of `robot`'s joints `joints` (0-based), noting on stderr each
+    /// joint whose description gives none (it gets the board's).
+    fn joint_profiles(
+        robot: &crate::robot::Robot,
+        joints: &[usize],
+        path: &Path,
+    ) -> Result<Vec<firmware::control::JointProfile>> {
+        joints
+            .iter()
+            .map(|&j| {
+                let Some(joint) = robot.joints.get(j) else {
+                    bail!(
+                        "--joints {}: {} has {} joints",
+                        j + 1,
+                        path.display(),
+                        robot.joints.len()
+                    );
+                };
+                if joint.profile.is_none() {
+                    eprintln!(
+                        "note: joint {} ({}) of {} has no [joint.profile]: the board's default profile",
+                        j + 1,
+                        joint.name,
+                        path.display()
+                    );
+                }
+                Ok(joint.drive_profile())
+            })
+            .collect()
+    }
+
     /// Builds the model to export.
     pub fn model(a: &ExportArgs) -> Result<LstmModel> {
         match &a.model {
@@ -1657,7 +1788,8 @@ pub mod cli {
                 .into());
             }
         }
-        let dynamics = match (&a.robot, &a.identified) {
+        let joints = joint_indices(a)?;
+        let (dynamics, profiles) = match (&a.robot, &a.identified) {
             (Some(p), Some(identified)) => {
                 if !a.chain.selection()?.is_default() {
                     anyhow::bail!(
@@ -1665,16 +1797,24 @@ pub mod cli {
                     );
                 }
                 let (robot, theta) = crate::identify::commands::load_identified(p, identified)?;
-                Some(FirmwareModel::build(&robot, &theta)?)
+                let profiles = joint_profiles(&robot, &joints, p)?;
+                (Some(FirmwareModel::build(&robot, &theta)?), profiles)
             }
             (Some(p), None) => {
                 let robot = a
                     .chain
                     .load_and_warn(p)
                     .with_context(|| format!("reading robot {}", p.display()))?;
-                Some(FirmwareModel::build(&robot, &robot.standard_parameters())?)
+                let profiles = joint_profiles(&robot, &joints, p)?;
+                (
+                    Some(FirmwareModel::build(&robot, &robot.standard_parameters())?),
+                    profiles,
+                )
             }
-            (None, _) => None,
+            (None, _) => (
+                None,
+                vec![firmware::control::JointProfile::BOARD; joints.len()],
+            ),
         };
         let sram = a.budgets.as_deref().map(sram_budget).transpose()?;
         let bytes = ModelBytes {
@@ -1685,10 +1825,11 @@ pub mod cli {
         let placement = choose_placement(a.weights_in, bytes, sram.map(|b| b.model_bytes()))?;
         let meta = ExportMeta {
             preset: m.preset.clone(),
-            joints: joint_indices(a)?,
+            joints,
             control_rate_hz: a.control_rate_hz,
             self_check_steps: a.self_check_steps,
             placement,
+            profiles,
         };
         let mut text = render(m, &net, &meta, dynamics.as_ref());
         if !warning.is_empty() {
