@@ -43,9 +43,8 @@ mod app {
     use cortex_m::interrupt::Mutex;
     use cortex_m_rt::{ExceptionFrame, entry, exception};
     use firmware::control::{
-        BusClock, Compensator, FaultFlags, FrameReceiver, JointDrive, JointProfile,
-        JointReference, JointState, JointStateMessage, LstmPredictor, SensorSample,
-        SubsetModel, plan_startup,
+        BusClock, Compensator, FaultFlags, FrameReceiver, JointDrive, JointProfile, JointReference,
+        JointState, JointStateMessage, LstmPredictor, SensorSample, SubsetModel, plan_startup,
     };
     use firmware::drivers::as5047p::{As5047p, counts_to_rad};
     use firmware::dynamics::RigidBodyModel;
@@ -196,16 +195,16 @@ mod app {
         start_interrupts(&mut cp.NVIC, plan.drive.is_some());
         tick::start_systick(&mut cp.SYST, CORE_CLOCK_HZ, TICK_HZ);
         match plan.joint {
-            Ok(j) => firmware::fw_info!(
+            Ok(_j) => firmware::fw_info!(
                 "board up as joint {=u8} (slot {=usize}): tick {=u32} Hz, PWM {=u32} Hz",
-                j.joint_number,
-                j.slot,
+                _j.joint_number,
+                _j.slot,
                 TICK_HZ,
                 PWM_HZ
             ),
-            Err(fault) => firmware::fw_error!(
+            Err(_fault) => firmware::fw_error!(
                 "board up WITHOUT a joint ({}): feedforward off, no state frames, bridge {=str}",
-                fault,
+                _fault,
                 if plan.drive.is_some() { "on" } else { "off" }
             ),
         }
