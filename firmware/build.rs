@@ -1,8 +1,5 @@
-//! Writes the activation tables (`nn::act`) to `OUT_DIR`, selects the DSP assembly, the
-//! compiled-in model, and adds `-Tdefmt.x` to the target binaries' link only when the
-//! `defmt` feature is on.
-//! (`-Tlink.x` is in `.cargo/config.toml` for the thumb target; the board's memory
-//! layout is the root `memory.x`, which the linker finds in the workspace root.)
+//! Writes the activation tables (`nn::act`) to `OUT_DIR`, selects the DSP assembly and
+//! the compiled-in model. (The board binaries' link set-up is the `board` crate's.)
 /// Entries of each activation table (`nn::act::TABLE_LEN`).
 const TABLE_LEN: i32 = 8192;
 
@@ -51,9 +48,5 @@ fn main() {
     let target = std::env::var("TARGET").unwrap_or_default();
     if target.starts_with("thumbv7em") || target.starts_with("thumbv8m.main") {
         println!("cargo:rustc-cfg=fw_dsp_asm");
-    }
-    let bare_metal = std::env::var("CARGO_CFG_TARGET_OS").is_ok_and(|os| os == "none");
-    if bare_metal && std::env::var_os("CARGO_FEATURE_DEFMT").is_some() {
-        println!("cargo:rustc-link-arg-bins=-Tdefmt.x");
     }
 }

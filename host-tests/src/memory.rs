@@ -60,7 +60,7 @@ pub struct MemoryMap {
 
 impl MemoryMap {
     /// The QEMU mps2-an386 image (`firmware/qemu/memory.x`) as the board places it
-    /// (root `memory.x`): the image's FLASH region (0x0000_0000, 4 MiB: vector
+    /// (`board/memory.x`): the image's FLASH region (0x0000_0000, 4 MiB: vector
     /// table, `.text`, `.rodata`) is the board's flash at 0x0800_0000, its CCMRAM
     /// region (0x203F_8000, 32 KiB: `.ccmram_text`) the board's CCM SRAM on the
     /// instruction bus at 0x1000_0000, the rest of its RAM (0x2000_0000: `.data`,
@@ -75,7 +75,7 @@ impl MemoryMap {
         }
     }
 
-    /// The board's own addresses (root `memory.x`): flash, CCM SRAM on both buses,
+    /// The board's own addresses (`board/memory.x`): flash, CCM SRAM on both buses,
     /// SRAM1/2.
     pub fn g474() -> MemoryMap {
         MemoryMap {
@@ -113,7 +113,7 @@ pub struct FlashTiming {
 }
 
 impl FlashTiming {
-    /// The board (`firmware/src/bin/board.rs`): 170 MHz, LATENCY = 4, PRFTEN, ICEN,
+    /// The board (`board/src/clock.rs`): 170 MHz, LATENCY = 4, PRFTEN, ICEN,
     /// DCEN, dual bank (64-bit reads).
     pub const G474_170_MHZ: FlashTiming = FlashTiming {
         wait_states: 4,

@@ -6,7 +6,7 @@ use std::process::Command;
 /// The firmware's target triple.
 pub const TARGET: &str = "thumbv7em-none-eabihf";
 
-/// The workspace root (where `Cargo.toml`, `memory.x` and `.cargo/` live).
+/// The workspace root (where `Cargo.toml` and `.cargo/` live).
 pub fn workspace_root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
         .parent()
@@ -23,7 +23,7 @@ pub fn target_dir() -> PathBuf {
 /// A firmware binary for the target.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum FirmwareBin {
-    /// The STM32G474RE board binary (root `memory.x`).
+    /// The STM32G474RE board binary (package `board`, `board/memory.x`).
     Board,
     /// The QEMU mps2-an386 test binary (package `firmware/qemu`).
     Qemu,
@@ -45,7 +45,7 @@ impl FirmwareBin {
     /// Cargo arguments that select this binary's package and features.
     fn cargo_args(self) -> &'static [&'static str] {
         match self {
-            FirmwareBin::Board => &["-p", "firmware", "--features", "board"],
+            FirmwareBin::Board => &["-p", "board"],
             FirmwareBin::Qemu | FirmwareBin::QemuBench => {
                 &["--manifest-path", "firmware/qemu/Cargo.toml"]
             }

@@ -731,6 +731,9 @@ pub struct ExportMeta {
     pub self_check_steps: usize,
     /// Where the model's arrays live on the target, and why.
     pub placement: PlacementChoice,
+    /// Drive profile of each compensated joint, in `joints` order (the robot
+    /// description's, `JointProfile::BOARD` where it gives none).
+    pub profiles: Vec<firmware::control::JointProfile>,
 }
 
 /// The `link_section` attribute of the model's arrays placed in SRAM: an input section
@@ -1282,6 +1285,102 @@ pub fn golden_inputs(n_inputs: usize, steps: usize) -> Vec<Vec<f32>> {
         .collect()
 }
 
+/// Writes `JOINT_PROFILES`: one `JointProfile` literal per compensated joint (numbers
+/// only, each f32 written so that it reads back to the same bits).
+fn write_profiles(s: &mut String, profiles: &[firmware::control::JointProfile]) {
+    use firmware::control::BusClock;
+    let _ = writeln!(
+        s,
+        "/// Drive profile of each compensated joint, in `JOINT_INDICES` order: motor, gear,\n\
+         /// limits, gains and bus settings (`control::JointProfile`)."
+    );
+    let _ = writeln!(
+        s,
+        "pub const JOINT_PROFILES: [firmware::control::JointProfile; {}] = [",
+        profiles.len()
+    );
+    for p in profiles {
+        let m = &p.motor;
+        let c = &p.cascade;
+        let l = &p.state_limits;
+        let bus_clock = match p.bus_clock {
+            BusClock::Synchronised => "firmware::control::BusClock::Synchronised".to_string(),
+            BusClock::FreeRunning { max_rate_error_ppm } => format!(
+                "firmware::control::BusClock::FreeRunning {{ max_rate_error_ppm: {max_rate_error_ppm} }}"
+            ),
+        };
+        let _ = writeln!(s, "    firmware::control::JointProfile {{");
+        let _ = writeln!(
+            s,
+            "        motor: firmware::control::MotorParameters {{ pole_pairs: {}, phase_resistance_ohm: {}, phase_inductance_h: {}, flux_linkage_wb: {} }},",
+            m.pole_pairs,
+            f32_lit(m.phase_resistance_ohm),
+            f32_lit(m.phase_inductance_h),
+            f32_lit(m.flux_linkage_wb)
+        );
+        let _ = writeln!(
+            s,
+            "        gear_ratio: {}, gear_efficiency: {}, encoder_offset_rad: {},",
+            f32_lit(p.gear_ratio),
+            f32_lit(p.gear_efficiency),
+            f32_lit(p.encoder_offset_rad)
+        );
+        let _ = writeln!(
+            s,
+            "        cascade: firmware::control::CascadeConfig {{ rate_hz: {}, position_kp: {}, position_ki: {}, position_kd: {}, max_velocity_rad_s: {}, velocity_kp: {}, velocity_ki: {}, velocity_kd: {}, max_current_a: {}, velocity_filter_alpha: {} }},",
+            f32_lit(c.rate_hz),
+            f32_lit(c.position_kp),
+            f32_lit(c.position_ki),
+            f32_lit(c.position_kd),
+            f32_lit(c.max_velocity_rad_s),
+            f32_lit(c.velocity_kp),
+            f32_lit(c.velocity_ki),
+            f32_lit(c.velocity_kd),
+            f32_lit(c.max_current_a),
+            f32_lit(c.velocity_filter_alpha)
+        );
+        let _ = writeln!(
+            s,
+            "        max_current_a: {}, overcurrent_trip_a: {}, bus_min_v: {}, bus_max_v: {}, max_abs_q_ref_rad: {},",
+            f32_lit(p.max_current_a),
+            f32_lit(p.overcurrent_trip_a),
+            f32_lit(p.bus_min_v),
+            f32_lit(p.bus_max_v),
+            f32_lit(p.max_abs_q_ref_rad)
+        );
+        let _ = writeln!(
+            s,
+            "        state_limits: firmware::control::StateLimits {{ max_abs_q_rad: {}, max_abs_qd_rad_s: {}, max_abs_qdd_rad_s2: {}, max_abs_tau_nm: {} }},",
+            f32_lit(l.max_abs_q_rad),
+            f32_lit(l.max_abs_qd_rad_s),
+            f32_lit(l.max_abs_qdd_rad_s2),
+            f32_lit(l.max_abs_tau_nm)
+        );
+        let _ = writeln!(
+            s,
+            "        watchdog_ticks: {}, max_message_age_ticks: {}, bus_clock: {bus_clock},",
+            p.watchdog_ticks, p.max_message_age_ticks
+        );
+        let _ = writeln!(
+            s,
+            "        max_torque_nm: {}, max_torque_rate_nm_s: {}, max_lstm_correction_nm: {}, warmup_ticks: {}, lstm_retry_ticks: {},",
+            f32_lit(p.max_torque_nm),
+            f32_lit(p.max_torque_rate_nm_s),
+            f32_lit(p.max_lstm_correction_nm),
+            p.warmup_ticks,
+            p.lstm_retry_ticks
+        );
+        let _ = writeln!(
+            s,
+            "        feedforward_max_current_a: {}, bus_baud: {},",
+            f32_lit(p.feedforward_max_current_a),
+            p.bus_baud
+        );
+        let _ = writeln!(s, "    }},");
+    }
+    let _ = writeln!(s, "];");
+}
+
 /// Renders the whole generated file.
 pub fn render(
     m: &LstmModel,
@@ -1389,6 +1488,7 @@ pub fn render(
         "pub const CONTROL_RATE_HZ: u32 = {};",
         meta.control_rate_hz
     );
+    write_profiles(s, &meta.profiles);
     match net {
         Exported::F32(n) => write_f32(s, &network_section, n),
         Exported::Int16(n) => write_quant(s, &network_section, n, "I16Weights", quads_i16),

@@ -68,6 +68,167 @@ struct JointToml {
     #[serde(default)]
     friction_offset: f64,
     locked_at: Option<f64>,
+    profile: Option<ProfileToml>,
+}
+
+/// `[joint.profile]`: the joint drive's settings (`firmware::control::JointProfile`),
+/// each field optional (default: `JointProfile::BOARD`'s).
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ProfileToml {
+    pole_pairs: Option<u8>,
+    phase_resistance_ohm: Option<f64>,
+    phase_inductance_h: Option<f64>,
+    flux_linkage_wb: Option<f64>,
+    gear_ratio: Option<f64>,
+    gear_efficiency: Option<f64>,
+    encoder_offset_rad: Option<f64>,
+    cascade_rate_hz: Option<f64>,
+    position_kp: Option<f64>,
+    position_ki: Option<f64>,
+    position_kd: Option<f64>,
+    max_velocity_rad_s: Option<f64>,
+    velocity_kp: Option<f64>,
+    velocity_ki: Option<f64>,
+    velocity_kd: Option<f64>,
+    cascade_max_current_a: Option<f64>,
+    velocity_filter_alpha: Option<f64>,
+    max_current_a: Option<f64>,
+    overcurrent_trip_a: Option<f64>,
+    bus_min_v: Option<f64>,
+    bus_max_v: Option<f64>,
+    max_abs_q_ref_rad: Option<f64>,
+    max_abs_q_rad: Option<f64>,
+    max_abs_qd_rad_s: Option<f64>,
+    max_abs_qdd_rad_s2: Option<f64>,
+    max_abs_tau_nm: Option<f64>,
+    watchdog_ticks: Option<u16>,
+    max_message_age_ticks: Option<u16>,
+    bus_clock: Option<BusClockToml>,
+    max_rate_error_ppm: Option<u32>,
+    max_torque_nm: Option<f64>,
+    max_torque_rate_nm_s: Option<f64>,
+    max_lstm_correction_nm: Option<f64>,
+    warmup_ticks: Option<u16>,
+    lstm_retry_ticks: Option<u16>,
+    feedforward_max_current_a: Option<f64>,
+    bus_baud: Option<u32>,
+}
+
+#[derive(Debug, Clone, Copy, Deserialize)]
+#[serde(rename_all = "snake_case")]
+enum BusClockToml {
+    Synchronised,
+    FreeRunning,
+}
+
+impl ProfileToml {
+    /// The board's profile with every given field in its place (f64 to f32; a value
+    /// beyond f32 becomes infinite and is refused by the range check).
+    fn resolve(&self) -> firmware::control::JointProfile {
+        use firmware::control::{BusClock, JointProfile};
+        let mut p = JointProfile::BOARD;
+        let set = |dst: &mut f32, v: Option<f64>| {
+            if let Some(v) = v {
+                *dst = v as f32;
+            }
+        };
+        if let Some(v) = self.pole_pairs {
+            p.motor.pole_pairs = v;
+        }
+        set(&mut p.motor.phase_resistance_ohm, self.phase_resistance_ohm);
+        set(&mut p.motor.phase_inductance_h, self.phase_inductance_h);
+        set(&mut p.motor.flux_linkage_wb, self.flux_linkage_wb);
+        set(&mut p.gear_ratio, self.gear_ratio);
+        set(&mut p.gear_efficiency, self.gear_efficiency);
+        set(&mut p.encoder_offset_rad, self.encoder_offset_rad);
+        set(&mut p.cascade.rate_hz, self.cascade_rate_hz);
+        set(&mut p.cascade.position_kp, self.position_kp);
+        set(&mut p.cascade.position_ki, self.position_ki);
+        set(&mut p.cascade.position_kd, self.position_kd);
+        set(&mut p.cascade.max_velocity_rad_s, self.max_velocity_rad_s);
+        set(&mut p.cascade.velocity_kp, self.velocity_kp);
+        set(&mut p.cascade.velocity_ki, self.velocity_ki);
+        set(&mut p.cascade.velocity_kd, self.velocity_kd);
+        set(&mut p.cascade.max_current_a, self.cascade_max_current_a);
+        set(
+            &mut p.cascade.velocity_filter_alpha,
+            self.velocity_filter_alpha,
+        );
+        set(&mut p.max_current_a, self.max_current_a);
+        set(&mut p.overcurrent_trip_a, self.overcurrent_trip_a);
+        set(&mut p.bus_min_v, self.bus_min_v);
+        set(&mut p.bus_max_v, self.bus_max_v);
+        set(&mut p.max_abs_q_ref_rad, self.max_abs_q_ref_rad);
+        set(&mut p.state_limits.max_abs_q_rad, self.max_abs_q_rad);
+        set(&mut p.state_limits.max_abs_qd_rad_s, self.max_abs_qd_rad_s);
+        set(
+            &mut p.state_limits.max_abs_qdd_rad_s2,
+            self.max_abs_qdd_rad_s2,
+        );
+        set(&mut p.state_limits.max_abs_tau_nm, self.max_abs_tau_nm);
+        p.watchdog_ticks = self.watchdog_ticks.unwrap_or(p.watchdog_ticks);
+        p.max_message_age_ticks = self
+            .max_message_age_ticks
+            .unwrap_or(p.max_message_age_ticks);
+        let ppm = match p.bus_clock {
+            BusClock::FreeRunning { max_rate_error_ppm } => max_rate_error_ppm,
+            BusClock::Synchronised => 0,
+        };
+        let ppm = self.max_rate_error_ppm.unwrap_or(ppm);
+        p.bus_clock = match (self.bus_clock, p.bus_clock) {
+            (Some(BusClockToml::Synchronised), _) => BusClock::Synchronised,
+            (Some(BusClockToml::FreeRunning), _) | (None, BusClock::FreeRunning { .. }) => {
+                BusClock::FreeRunning {
+                    max_rate_error_ppm: ppm,
+                }
+            }
+            (None, BusClock::Synchronised) => BusClock::Synchronised,
+        };
+        set(&mut p.max_torque_nm, self.max_torque_nm);
+        set(&mut p.max_torque_rate_nm_s, self.max_torque_rate_nm_s);
+        set(&mut p.max_lstm_correction_nm, self.max_lstm_correction_nm);
+        p.warmup_ticks = self.warmup_ticks.unwrap_or(p.warmup_ticks);
+        p.lstm_retry_ticks = self.lstm_retry_ticks.unwrap_or(p.lstm_retry_ticks);
+        set(
+            &mut p.feedforward_max_current_a,
+            self.feedforward_max_current_a,
+        );
+        p.bus_baud = self.bus_baud.unwrap_or(p.bus_baud);
+        p
+    }
+}
+
+/// Line of `field = ...` in the `[joint.profile]` table of the `joint`-th
+/// `[[joint]]` block, else of that table's header.
+fn locate_profile(text: &str, joint: usize, field: &str) -> Option<usize> {
+    let mut count = 0usize;
+    let mut in_joint = false;
+    let mut in_profile = false;
+    let mut header = None;
+    for (n, raw) in text.lines().enumerate() {
+        let line = raw.trim_start();
+        if line.starts_with("[[joint]]") {
+            in_joint = count == joint;
+            count += 1;
+            in_profile = false;
+            continue;
+        }
+        if line.starts_with('[') {
+            in_profile = in_joint && line.starts_with("[joint.profile]");
+            if in_profile {
+                header = Some(n + 1);
+            }
+            continue;
+        }
+        if in_profile
+            && let Some(rest) = line.strip_prefix(field)
+            && rest.trim_start().starts_with('=')
+        {
+            return Some(n + 1);
+        }
+    }
+    header
 }
 
 /// 1-based line of byte offset `pos` in `text`.
@@ -295,6 +456,25 @@ pub(super) fn parse(text: &str, file: &Path) -> Result<Robot, RobotError> {
             Some(q) => JointMode::Locked { q_rad: q },
             None => JointMode::Modelled,
         };
+        let profile = match &j.profile {
+            None => None,
+            Some(t) => {
+                let p = t.resolve();
+                if let Some(field) = p.invalid_field() {
+                    return Err(err(
+                        locate_profile(text, i, field),
+                        format!("joint[{i}].profile.{field}"),
+                        "out of range: rates, limits, motor constants and the gear must be \
+                         positive and finite, gains finite and not negative, gear_efficiency \
+                         and velocity_filter_alpha in (0, 1], overcurrent_trip_a above \
+                         max_current_a, bus_max_v above bus_min_v, tick counts at least 1, \
+                         max_rate_error_ppm below 1000000"
+                            .into(),
+                    ));
+                }
+                Some(p)
+            }
+        };
         let own_link = (rot_x(j.alpha), Vector3::new(j.a, 0.0, 0.0));
         let (origin_rotation, origin_translation, link_frame) = match parsed.convention {
             DhConvention::Standard => {
@@ -330,6 +510,7 @@ pub(super) fn parse(text: &str, file: &Path) -> Result<Robot, RobotError> {
                 offset_nm: j.friction_offset,
             },
             mode,
+            profile,
         });
     }
     if parsed

@@ -424,9 +424,21 @@ pub struct Joint {
     pub friction: JointFriction,
     /// Modelled or locked.
     pub mode: JointMode,
+    /// The joint drive's profile from the description (`[joint.profile]` of a DH
+    /// table); `None`: not given (see [`Joint::drive_profile`]).
+    pub profile: Option<firmware::control::JointProfile>,
 }
 
 impl Joint {
+    /// The joint drive's profile: the description's, else the board's
+    /// (`firmware::control::JointProfile::BOARD`). What the exporter writes into a
+    /// model file's `JOINT_PROFILES` and what a closed-loop simulation of this joint's
+    /// drive and compensator runs.
+    pub fn drive_profile(&self) -> firmware::control::JointProfile {
+        self.profile
+            .unwrap_or(firmware::control::JointProfile::BOARD)
+    }
+
     /// Standard parameters of this link expressed in the body frame `F_i` (what the
     /// recursive Newton-Euler uses), from parameters `link_params` in the link frame.
     pub fn link_to_body(&self, link_params: &[f64; 10]) -> [f64; 10] {

@@ -732,6 +732,7 @@ pub(super) fn parse(
                     drive: JointDrive::default(),
                     friction,
                     mode: JointMode::Modelled,
+                    profile: None,
                 });
                 acc = (Matrix3::identity(), Vector3::zeros());
                 body_params = Some(params);

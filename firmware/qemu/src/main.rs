@@ -14,7 +14,7 @@ use test_kit::golden::{self, MathFn};
 
 mod exit;
 /// The start-up copy of the CCM SRAM code, as on the board.
-#[path = "../../src/bin/shared/ccm.rs"]
+#[path = "../../../board/src/ccm.rs"]
 #[allow(unsafe_code)]
 mod ccm;
 use exit::{fail, pass};

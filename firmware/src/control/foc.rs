@@ -194,7 +194,7 @@ impl MotorParameters {
     };
 
     /// Motor-side torque constant, N*m per A of q current.
-    pub fn torque_constant_nm_per_a(&self) -> f32 {
+    pub const fn torque_constant_nm_per_a(&self) -> f32 {
         1.5 * self.pole_pairs as f32 * self.flux_linkage_wb
     }
 }

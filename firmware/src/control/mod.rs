@@ -22,6 +22,8 @@ pub mod faults;
 pub mod foc;
 pub mod message;
 pub mod predictors;
+pub mod profile;
+pub mod startup;
 
 pub use cascade::{CascadeConfig, JointReference, Pid, PositionVelocityCascade};
 pub use compensator::{
@@ -33,6 +35,10 @@ pub use faults::FaultFlags;
 pub use foc::{CurrentLoop, CurrentLoopConfig, MotorParameters};
 pub use message::{FrameReceiver, JointState, JointStateMessage, SEQUENCE_WINDOW, StateLimits};
 pub use predictors::{DecoupledJointModel, LstmPredictor, SubsetModel, TorqueNetwork};
+pub use profile::JointProfile;
+pub use startup::{
+    JointConfigBlock, JointConfigFault, JointSlot, StartupPlan, plan_startup, select_joint,
+};
 
 /// `x` limited to [-limit, limit] without a panic path (`f32::clamp` asserts its
 /// bounds): a negative or NaN limit counts as 0, a NaN `x` gives 0.

@@ -120,6 +120,36 @@ fn joint_indices(a: &ExportArgs) -> Result<Vec<usize>> {
         .collect()
 }
 
+/// The drive profiles of `robot`'s joints `joints` (0-based), noting on stderr each joint
+/// whose description gives none (it gets the board's).
+fn joint_profiles(
+    robot: &robot::Robot,
+    joints: &[usize],
+) -> Result<Vec<firmware::control::JointProfile>> {
+    joints
+        .iter()
+        .map(|&j| {
+            let Some(joint) = robot.joints.get(j) else {
+                bail!(
+                    "--joints {}: {} has {} joints",
+                    j + 1,
+                    robot.source.display(),
+                    robot.joints.len()
+                );
+            };
+            if joint.profile.is_none() {
+                eprintln!(
+                    "note: joint {} ({}) of {} has no [joint.profile]: the board's default profile",
+                    j + 1,
+                    joint.name,
+                    robot.source.display()
+                );
+            }
+            Ok(joint.drive_profile())
+        })
+        .collect()
+}
+
 /// Builds the model to export.
 pub fn model(a: &ExportArgs) -> Result<LstmModel> {
     match &a.model {
@@ -206,7 +236,8 @@ pub fn render_export(m: &LstmModel, a: &ExportArgs) -> Result<(Exported, Placeme
             .into());
         }
     }
-    let dynamics = match (&a.robot, &a.identified) {
+    let joints = joint_indices(a)?;
+    let (dynamics, profiles) = match (&a.robot, &a.identified) {
         (p, Some(identified)) => {
             if !a.chain.selection()?.is_default() {
                 anyhow::bail!(
@@ -218,16 +249,27 @@ pub fn render_export(m: &LstmModel, a: &ExportArgs) -> Result<(Exported, Placeme
             if let Some(w) = &id.warning {
                 eprintln!("warning: {w}");
             }
-            Some(FirmwareModel::build(&id.robot, &id.standard_parameters)?)
+            let profiles = joint_profiles(&id.robot, &joints)?;
+            (
+                Some(FirmwareModel::build(&id.robot, &id.standard_parameters)?),
+                profiles,
+            )
         }
         (Some(p), None) => {
             let robot = a
                 .chain
                 .load_and_warn(&RobotSource::File(p.clone()))
                 .with_context(|| format!("reading robot {}", p.display()))?;
-            Some(FirmwareModel::build(&robot, &robot.standard_parameters())?)
+            let profiles = joint_profiles(&robot, &joints)?;
+            (
+                Some(FirmwareModel::build(&robot, &robot.standard_parameters())?),
+                profiles,
+            )
         }
-        (None, _) => None,
+        (None, None) => (
+            None,
+            vec![firmware::control::JointProfile::BOARD; joints.len()],
+        ),
     };
     let sram = a.budgets.as_deref().map(sram_budget).transpose()?;
     let bytes = ModelBytes {
@@ -238,10 +280,11 @@ pub fn render_export(m: &LstmModel, a: &ExportArgs) -> Result<(Exported, Placeme
     let placement = choose_placement(a.weights_in, bytes, sram.map(|b| b.model_bytes()))?;
     let meta = ExportMeta {
         preset: m.preset.clone(),
-        joints: joint_indices(a)?,
+        joints,
         control_rate_hz: a.control_rate_hz,
         self_check_steps: a.self_check_steps,
         placement,
+        profiles,
     };
     let mut text = render(m, &net, &meta, dynamics.as_ref());
     if !warning.is_empty() {

@@ -1,18 +1,15 @@
 //! The STM32G474's 170 MHz core clock with the flash set for it: shared by the
 //! board and board-bench binaries, so that the bench times what the board runs.
+//! (`unsafe`: the raw multi-bit `FLASH_ACR`, `PLLCFGR` and `CFGR` field writes the PAC
+//! marks unsafe, each with its value from the reference manual.)
 
-use stm32g4::stm32g474 as pac;
+use crate::{pac, spin_until};
 
 /// Core clock after [`boost_170_mhz`], in Hz.
 pub const CORE_CLOCK_HZ: u32 = 170_000_000;
 
 /// Flash wait states at 170 MHz in range-1 boost mode (RM0440 §3.3.3).
 pub const FLASH_WAIT_STATES: u8 = 4;
-
-/// Polls `cond` a bounded number of times; whether it became true.
-fn spin_until(mut cond: impl FnMut() -> bool) -> bool {
-    (0..100_000).any(|_| cond())
-}
 
 /// Boost mode, flash at [`FLASH_WAIT_STATES`] with prefetch, instruction and data
 /// caches on, then HSI16 / 4 x 85 / 2 = 170 MHz through the PLL (switched through
