@@ -2,8 +2,9 @@
 //! exporter writes into a model file's `JOINT_PROFILES` and what the board runs; a bad
 //! profile field is refused naming the file, line and field.
 use firmware::control::{BusClock, JointProfile};
-use model_export::export::{Precision, WeightsIn, cli::ExportArgs};
-use model_export::robot::Robot;
+use fw_export::{Precision, WeightsIn};
+use model_export::cmd::export::ExportArgs;
+use robot::Robot;
 use std::path::{Path, PathBuf};
 
 fn workspace() -> PathBuf {
@@ -14,8 +15,7 @@ fn workspace() -> PathBuf {
 }
 
 fn default_robot_text() -> String {
-    std::fs::read_to_string(workspace().join("model-export/robots/default.toml"))
-        .expect("default robot")
+    std::fs::read_to_string(workspace().join("robots/default.toml")).expect("default robot")
 }
 
 /// 1-based line of the `nth` line starting with `needle`.
@@ -164,8 +164,8 @@ fn the_exporter_writes_each_compensated_joints_profile() {
     std::fs::write(&robot_path, &text).expect("write robot");
     let out = dir.path().join("model.rs");
     let a = export_args(Some(robot_path.clone()), out.clone());
-    let m = model_export::export::cli::model(&a).expect("model");
-    model_export::export::cli::export(&m, &a).expect("export");
+    let m = model_export::cmd::export::model(&a).expect("model");
+    model_export::cmd::export::export(&m, &a).expect("export");
     let file = std::fs::read_to_string(&out).expect("model file");
     let block: Vec<&str> = file
         .lines()
@@ -192,7 +192,7 @@ fn the_exporter_writes_each_compensated_joints_profile() {
     // Without a robot: the board's profile for every joint, the same lines.
     let out2 = dir.path().join("plain.rs");
     let a = export_args(None, out2.clone());
-    model_export::export::cli::export(&m, &a).expect("export");
+    model_export::cmd::export::export(&m, &a).expect("export");
     let plain = std::fs::read_to_string(&out2).expect("model file");
     assert_eq!(
         plain
@@ -205,7 +205,7 @@ fn the_exporter_writes_each_compensated_joints_profile() {
     std::fs::write(&robot_path, bad).expect("write robot");
     let before = std::fs::read(&out).expect("model file");
     let a = export_args(Some(robot_path), out.clone());
-    let err = model_export::export::cli::export(&m, &a).expect_err("bad profile");
+    let err = model_export::cmd::export::export(&m, &a).expect_err("bad profile");
     assert!(
         format!("{err:#}").contains("profile.velocity_kp"),
         "{err:#}"

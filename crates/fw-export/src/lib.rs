@@ -1409,7 +1409,7 @@ pub fn render(
     let s = &mut body;
     let _ = writeln!(
         s,
-        "/// Layout version of this file (`model_export::export::SCHEMA_VERSION`)."
+        "/// Layout version of this file (`fw_export::SCHEMA_VERSION`)."
     );
     let _ = writeln!(s, "pub const SCHEMA_VERSION: u32 = {SCHEMA_VERSION};");
     let prec = match net {

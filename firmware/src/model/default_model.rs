@@ -8,8 +8,8 @@ use firmware::nn::format::{FeaturePreset, I8Weights, I16Weights, InputActivation
 #[allow(unused_imports)]
 use firmware::nn::kernels::{F32Lstm, F32State, LinearInput, QuantLstm, TanhInput};
 /// SHA-256 (first 8 bytes) of everything below this line.
-pub const CONTENT_HASH: u64 = 0xf220ffef69e4697a;
-/// Layout version of this file (`model_export::export::SCHEMA_VERSION`).
+pub const CONTENT_HASH: u64 = 0x640f0f9cfd8f5301;
+/// Layout version of this file (`fw_export::SCHEMA_VERSION`).
 pub const SCHEMA_VERSION: u32 = 6;
 /// Numeric precision of the network.
 pub const PRECISION: Precision = Precision::Int16;
@@ -35,34 +35,34 @@ pub const JOINT_INDICES: [usize; 3] = [3, 4, 5];
 pub const CONTROL_RATE_HZ: u32 = 100;
 /// Drive profile of each compensated joint, in `JOINT_INDICES` order: motor, gear,
 /// limits, gains and bus settings (`control::JointProfile`).
-pub const JOINT_PROFILES: [crate::control::JointProfile; 3] = [
-    crate::control::JointProfile {
-        motor: crate::control::MotorParameters { pole_pairs: 7, phase_resistance_ohm: 0.3, phase_inductance_h: 0.0003, flux_linkage_wb: 0.01 },
+pub const JOINT_PROFILES: [firmware::control::JointProfile; 3] = [
+    firmware::control::JointProfile {
+        motor: firmware::control::MotorParameters { pole_pairs: 7, phase_resistance_ohm: 0.3, phase_inductance_h: 0.0003, flux_linkage_wb: 0.01 },
         gear_ratio: 100.0, gear_efficiency: 1.0, encoder_offset_rad: 0.0,
-        cascade: crate::control::CascadeConfig { rate_hz: 5000.0, position_kp: 40.0, position_ki: 0.0, position_kd: 0.0, max_velocity_rad_s: 4.0, velocity_kp: 12.0, velocity_ki: 400.0, velocity_kd: 0.0, max_current_a: 15.0, velocity_filter_alpha: 0.3 },
+        cascade: firmware::control::CascadeConfig { rate_hz: 5000.0, position_kp: 40.0, position_ki: 0.0, position_kd: 0.0, max_velocity_rad_s: 4.0, velocity_kp: 12.0, velocity_ki: 400.0, velocity_kd: 0.0, max_current_a: 15.0, velocity_filter_alpha: 0.3 },
         max_current_a: 15.0, overcurrent_trip_a: 30.0, bus_min_v: 36.0, bus_max_v: 56.0, max_abs_q_ref_rad: 6.3,
-        state_limits: crate::control::StateLimits { max_abs_q_rad: 6.3, max_abs_qd_rad_s: 5.0, max_abs_qdd_rad_s2: 200.0, max_abs_tau_nm: 300.0 },
-        watchdog_ticks: 3, max_message_age_ticks: 3, bus_clock: crate::control::BusClock::FreeRunning { max_rate_error_ppm: 20000 },
+        state_limits: firmware::control::StateLimits { max_abs_q_rad: 6.3, max_abs_qd_rad_s: 5.0, max_abs_qdd_rad_s2: 200.0, max_abs_tau_nm: 300.0 },
+        watchdog_ticks: 3, max_message_age_ticks: 3, bus_clock: firmware::control::BusClock::FreeRunning { max_rate_error_ppm: 20000 },
         max_torque_nm: 120.0, max_torque_rate_nm_s: 2000.0, max_lstm_correction_nm: 30.0, warmup_ticks: 10, lstm_retry_ticks: 50,
         feedforward_max_current_a: 12.0, bus_baud: 2000000,
     },
-    crate::control::JointProfile {
-        motor: crate::control::MotorParameters { pole_pairs: 7, phase_resistance_ohm: 0.3, phase_inductance_h: 0.0003, flux_linkage_wb: 0.01 },
+    firmware::control::JointProfile {
+        motor: firmware::control::MotorParameters { pole_pairs: 7, phase_resistance_ohm: 0.3, phase_inductance_h: 0.0003, flux_linkage_wb: 0.01 },
         gear_ratio: 100.0, gear_efficiency: 1.0, encoder_offset_rad: 0.0,
-        cascade: crate::control::CascadeConfig { rate_hz: 5000.0, position_kp: 40.0, position_ki: 0.0, position_kd: 0.0, max_velocity_rad_s: 4.0, velocity_kp: 12.0, velocity_ki: 400.0, velocity_kd: 0.0, max_current_a: 15.0, velocity_filter_alpha: 0.3 },
+        cascade: firmware::control::CascadeConfig { rate_hz: 5000.0, position_kp: 40.0, position_ki: 0.0, position_kd: 0.0, max_velocity_rad_s: 4.0, velocity_kp: 12.0, velocity_ki: 400.0, velocity_kd: 0.0, max_current_a: 15.0, velocity_filter_alpha: 0.3 },
         max_current_a: 15.0, overcurrent_trip_a: 30.0, bus_min_v: 36.0, bus_max_v: 56.0, max_abs_q_ref_rad: 6.3,
-        state_limits: crate::control::StateLimits { max_abs_q_rad: 6.3, max_abs_qd_rad_s: 5.0, max_abs_qdd_rad_s2: 200.0, max_abs_tau_nm: 300.0 },
-        watchdog_ticks: 3, max_message_age_ticks: 3, bus_clock: crate::control::BusClock::FreeRunning { max_rate_error_ppm: 20000 },
+        state_limits: firmware::control::StateLimits { max_abs_q_rad: 6.3, max_abs_qd_rad_s: 5.0, max_abs_qdd_rad_s2: 200.0, max_abs_tau_nm: 300.0 },
+        watchdog_ticks: 3, max_message_age_ticks: 3, bus_clock: firmware::control::BusClock::FreeRunning { max_rate_error_ppm: 20000 },
         max_torque_nm: 120.0, max_torque_rate_nm_s: 2000.0, max_lstm_correction_nm: 30.0, warmup_ticks: 10, lstm_retry_ticks: 50,
         feedforward_max_current_a: 12.0, bus_baud: 2000000,
     },
-    crate::control::JointProfile {
-        motor: crate::control::MotorParameters { pole_pairs: 7, phase_resistance_ohm: 0.3, phase_inductance_h: 0.0003, flux_linkage_wb: 0.01 },
+    firmware::control::JointProfile {
+        motor: firmware::control::MotorParameters { pole_pairs: 7, phase_resistance_ohm: 0.3, phase_inductance_h: 0.0003, flux_linkage_wb: 0.01 },
         gear_ratio: 100.0, gear_efficiency: 1.0, encoder_offset_rad: 0.0,
-        cascade: crate::control::CascadeConfig { rate_hz: 5000.0, position_kp: 40.0, position_ki: 0.0, position_kd: 0.0, max_velocity_rad_s: 4.0, velocity_kp: 12.0, velocity_ki: 400.0, velocity_kd: 0.0, max_current_a: 15.0, velocity_filter_alpha: 0.3 },
+        cascade: firmware::control::CascadeConfig { rate_hz: 5000.0, position_kp: 40.0, position_ki: 0.0, position_kd: 0.0, max_velocity_rad_s: 4.0, velocity_kp: 12.0, velocity_ki: 400.0, velocity_kd: 0.0, max_current_a: 15.0, velocity_filter_alpha: 0.3 },
         max_current_a: 15.0, overcurrent_trip_a: 30.0, bus_min_v: 36.0, bus_max_v: 56.0, max_abs_q_ref_rad: 6.3,
-        state_limits: crate::control::StateLimits { max_abs_q_rad: 6.3, max_abs_qd_rad_s: 5.0, max_abs_qdd_rad_s2: 200.0, max_abs_tau_nm: 300.0 },
-        watchdog_ticks: 3, max_message_age_ticks: 3, bus_clock: crate::control::BusClock::FreeRunning { max_rate_error_ppm: 20000 },
+        state_limits: firmware::control::StateLimits { max_abs_q_rad: 6.3, max_abs_qd_rad_s: 5.0, max_abs_qdd_rad_s2: 200.0, max_abs_tau_nm: 300.0 },
+        watchdog_ticks: 3, max_message_age_ticks: 3, bus_clock: firmware::control::BusClock::FreeRunning { max_rate_error_ppm: 20000 },
         max_torque_nm: 120.0, max_torque_rate_nm_s: 2000.0, max_lstm_correction_nm: 30.0, warmup_ticks: 10, lstm_retry_ticks: 50,
         feedforward_max_current_a: 12.0, bus_baud: 2000000,
     },
