@@ -202,7 +202,7 @@ fn a_time_jump_in_one_row_is_an_error_not_a_huge_grid() {
 fn joint_limits_above_pi_do_not_panic_the_base_parameters() {
     let dir = tempfile::tempdir().unwrap();
     let text = std::fs::read_to_string(
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("robots/planar_2r.toml"),
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../robots/planar_2r.toml"),
     )
     .unwrap()
     // Both joints' limits above pi: no range inside ±pi to sample.
@@ -397,7 +397,7 @@ fn a_resample_rate_of_1e12_is_an_error_naming_the_limit() {
 fn joint_limits_that_are_equal_are_an_error_naming_line_and_field() {
     let dir = tempfile::tempdir().unwrap();
     let text = std::fs::read_to_string(
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("robots/planar_2r.toml"),
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../robots/planar_2r.toml"),
     )
     .unwrap()
     // Joint 1 with lower = upper: an empty range (base-parameter sampling once panicked).
@@ -625,7 +625,7 @@ fn excite_writes_its_coefficients_playback_and_plot_all_or_none() {
     // The plot, staged last, cannot be written (a folder is in its place).
     std::fs::create_dir(dir.path().join("e.svg")).unwrap();
     let r = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("robots/planar_2r.toml")
+        .join("../robots/planar_2r.toml")
         .display()
         .to_string();
     let d = dir.path().display().to_string();

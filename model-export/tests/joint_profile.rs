@@ -172,7 +172,7 @@ fn the_exporter_writes_each_compensated_joints_profile() {
         .skip_while(|l| !l.starts_with("pub const JOINT_PROFILES"))
         .take_while(|l| *l != "];")
         .collect();
-    assert!(block[0].starts_with("pub const JOINT_PROFILES: [crate::control::JointProfile; 3]"));
+    assert!(block[0].starts_with("pub const JOINT_PROFILES: [firmware::control::JointProfile; 3]"));
     let gears: Vec<&str> = block
         .iter()
         .filter(|l| l.trim_start().starts_with("gear_ratio:"))

@@ -9,7 +9,7 @@ use robot::Robot;
 use std::path::Path;
 
 fn robots_dir() -> &'static Path {
-    Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/robots"))
+    Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../robots"))
 }
 
 /// default.toml and default.urdf describe the same arm: equal inverse dynamics at random
