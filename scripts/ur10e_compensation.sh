@@ -115,10 +115,12 @@ for spec in "${all_nets[@]}"; do
   nets_run+=("$name")
   echo "== $name: preset $preset on $dir/"
   # The drive-side compensator is what each joint's drive runs: one small network per
-  # joint on that joint's own features (10 -> 16 -> LSTM 16 -> 1, the per-joint budget).
+  # joint on that joint's own features (10 -> 16 -> LSTM 16 -> 1, the per-joint budget),
+  # its do-no-harm gain judged on every held-out run (4 run-wise folds of the training
+  # runs and the validation run).
   if [ "$preset" = drive ]; then
     groups=(${joints//,/ })
-    size=(--embed 16 --hidden 16 --patience 15)
+    size=(--embed 16 --hidden 16 --patience 15 --gain-folds 4)
   else
     groups=("$joints")
     size=()

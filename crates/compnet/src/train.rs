@@ -400,30 +400,114 @@ pub fn subtract_linear_stage(w: &[f32], seqs: &mut [Sequence]) {
 /// does not help on held-out runs fades towards the model alone. Returns the gains
 /// (1 for outputs that are not residuals).
 pub fn shrink_residual_outputs(m: &mut LstmModel, val: &[&Sequence]) -> Result<Vec<f32>> {
-    let o = m.dims.output;
-    let (mut yp, mut pp) = (vec![0.0f64; o], vec![0.0f64; o]);
-    let mut residual = vec![true; o];
-    for seq in val {
-        let pred = m.stream(&seq.inputs)?;
-        for (t, p) in pred.iter().enumerate() {
-            for k in 0..o {
-                residual[k] &= seq.model_only[t][k] == 0.0;
-                yp[k] += f64::from(seq.targets[t][k]) * f64::from(p[k]);
-                pp[k] += f64::from(p[k]).powi(2);
-            }
-        }
-    }
-    let gains: Vec<f32> = (0..o)
-        .map(|k| match (residual[k] && !val.is_empty(), pp[k] > 0.0) {
-            (true, true) => (yp[k] / pp[k]).clamp(0.0, 1.0) as f32,
-            _ => 1.0,
-        })
-        .collect();
-    for (k, g) in gains.iter().enumerate() {
+    let mut fit = GainFit::new(m.dims.output);
+    fit.add(m, val)?;
+    let gains = fit.gains();
+    apply_output_gains(m, &gains);
+    Ok(gains)
+}
+
+/// Scales output `k` of `m` by `gains[k]` (folded into the output de-normalisation).
+pub fn apply_output_gains(m: &mut LstmModel, gains: &[f32]) {
+    for (k, g) in gains.iter().enumerate().take(m.dims.output) {
         m.output_mean[k] *= g;
         m.output_std[k] = (m.output_std[k] * g).max(f32::MIN_POSITIVE);
     }
-    Ok(gains)
+}
+
+/// Sums for the least-squares output gains of a residual network over sequences it did
+/// not train on: per output, `sum(target * prediction)` and `sum(prediction^2)`.
+#[derive(Clone, Debug)]
+pub struct GainFit {
+    target_times_prediction: Vec<f64>,
+    prediction_squared: Vec<f64>,
+    residual: Vec<bool>,
+    sequences: usize,
+}
+
+impl GainFit {
+    /// No sequences yet, `outputs` outputs.
+    pub fn new(outputs: usize) -> Self {
+        GainFit {
+            target_times_prediction: vec![0.0; outputs],
+            prediction_squared: vec![0.0; outputs],
+            residual: vec![true; outputs],
+            sequences: 0,
+        }
+    }
+
+    /// Streams `m` over each sequence (as the firmware runs it) and adds its
+    /// predictions and targets.
+    pub fn add(&mut self, m: &LstmModel, seqs: &[&Sequence]) -> Result<()> {
+        for seq in seqs {
+            let pred = m.stream(&seq.inputs)?;
+            for (t, p) in pred.iter().enumerate() {
+                for (k, &pk) in p.iter().enumerate().take(self.residual.len()) {
+                    self.residual[k] &= seq.model_only[t][k] == 0.0;
+                    self.target_times_prediction[k] += f64::from(seq.targets[t][k]) * f64::from(pk);
+                    self.prediction_squared[k] += f64::from(pk).powi(2);
+                }
+            }
+            self.sequences += 1;
+        }
+        Ok(())
+    }
+
+    /// Per output, the gain in [0, 1] that minimises the squared error of
+    /// `gain * prediction` over the sequences added; 1 for an output that is not a
+    /// residual, an output never predicted, or when no sequence was added.
+    pub fn gains(&self) -> Vec<f32> {
+        (0..self.residual.len())
+            .map(|k| {
+                let pp = self.prediction_squared[k];
+                if self.residual[k] && self.sequences > 0 && pp > 0.0 {
+                    (self.target_times_prediction[k] / pp).clamp(0.0, 1.0) as f32
+                } else {
+                    1.0
+                }
+            })
+            .collect()
+    }
+}
+
+/// Do-no-harm gains judged on every held-out run, not on the validation runs alone: the
+/// training runs are dealt into `folds` folds (run `i` into fold `i % folds`); for each
+/// fold a network trained from `init` as [`train`] trains (learning rate `lr`, early
+/// stopping on `val`) on the other folds' runs predicts that fold's runs, and `trained`
+/// (the network trained on every training run) predicts the validation runs. The gains
+/// ([`GainFit::gains`]) are fitted on all these predictions together, so a network whose
+/// help does not carry over from run to run fades towards its linear stage.
+pub fn cross_validated_gains(
+    init: &LstmModel,
+    trained: &LstmModel,
+    train_runs: &[&Sequence],
+    val: &[&Sequence],
+    cfg: &TrainConfig,
+    lr: f64,
+    folds: usize,
+) -> Result<Vec<f32>> {
+    let mut fit = GainFit::new(trained.dims.output);
+    fit.add(trained, val)?;
+    if !fit.residual.iter().any(|&r| r) {
+        return Ok(fit.gains());
+    }
+    let folds = folds.min(train_runs.len());
+    for k in 0..folds {
+        let (mut held, mut rest) = (Vec::new(), Vec::new());
+        for (i, &s) in train_runs.iter().enumerate() {
+            if i % folds == k {
+                held.push(s);
+            } else {
+                rest.push(s);
+            }
+        }
+        if rest.is_empty() || held.is_empty() {
+            continue;
+        }
+        let (m, _) = run(init, &rest, val, cfg, lr, cfg.epochs, false)?;
+        fit.add(&m, &held)?;
+    }
+    Ok(fit.gains())
 }
 
 /// CPU seconds (user + system) this process has used, from `/proc/self/stat` (10 ms
@@ -465,4 +549,53 @@ pub fn time_epochs(
         times.push((t0.elapsed().as_secs_f64(), cpu));
     }
     Ok((w.count, times))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A sequence whose targets are `scale` times what `m` predicts on it (`model_only`
+    /// 0: a residual, or 1: not one).
+    fn scaled_sequence(m: &LstmModel, scale: f32, model_only: f32) -> Sequence {
+        let inputs: Vec<Vec<f32>> = (0..200)
+            .map(|t| vec![(t as f32 * 0.1).sin(), (t as f32 * 0.03).cos()])
+            .collect();
+        let pred = m.stream(&inputs).unwrap();
+        Sequence {
+            targets: pred.iter().map(|p| vec![scale * p[0]]).collect(),
+            model_only: vec![vec![model_only]; inputs.len()],
+            inputs,
+            ..Default::default()
+        }
+    }
+
+    #[test]
+    fn gains_are_the_clamped_least_squares_scale_over_every_sequence_added() {
+        let dims = LstmDims {
+            input: 2,
+            embed: 4,
+            hidden: 4,
+            output: 1,
+        };
+        let m = LstmModel::init(dims, 3);
+        let gain = |seqs: &[Sequence]| {
+            let mut fit = GainFit::new(1);
+            for s in seqs {
+                fit.add(&m, &[s]).unwrap();
+            }
+            fit.gains()[0]
+        };
+        assert!((gain(&[scaled_sequence(&m, 0.5, 0.0)]) - 0.5).abs() < 1e-6);
+        // Pooled over runs: one where the network helps fully, one where it is wrong.
+        let pooled = gain(&[
+            scaled_sequence(&m, 1.0, 0.0),
+            scaled_sequence(&m, -1.0, 0.0),
+        ]);
+        assert_eq!(pooled, 0.0);
+        assert_eq!(gain(&[scaled_sequence(&m, 3.0, 0.0)]), 1.0);
+        // Not a residual, or nothing added: left as it is.
+        assert_eq!(gain(&[scaled_sequence(&m, 0.5, 1.0)]), 1.0);
+        assert_eq!(gain(&[]), 1.0);
+    }
 }
