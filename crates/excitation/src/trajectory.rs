@@ -193,80 +193,6 @@ pub fn sample_count(duration_s: f64, rate_hz: f64) -> usize {
     (duration_s * rate_hz - 1e-9).ceil().max(1.0) as usize + 1
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn example() -> ExcitationTrajectory {
-        ExcitationTrajectory {
-            period_s: 10.0,
-            harmonics: 3,
-            joints: vec![
-                JointFourier {
-                    q0_rad: 0.1,
-                    a_rad: vec![0.2, -0.1, 0.05],
-                    b_rad: vec![0.3, 0.0, -0.02],
-                },
-                JointFourier {
-                    q0_rad: -0.4,
-                    a_rad: vec![0.0, 0.1, 0.0],
-                    b_rad: vec![0.1, 0.1, 0.1],
-                },
-            ],
-        }
-    }
-
-    #[test]
-    fn derivatives_match_finite_differences() {
-        let tr = example();
-        let h = 1e-5;
-        for &t in &[0.0, 1.3, 4.7, 9.99] {
-            let (m, p, c) = (tr.eval(t - h), tr.eval(t + h), tr.eval(t));
-            for j in 0..2 {
-                let v = (p.q_rad[j] - m.q_rad[j]) / (2.0 * h);
-                let a = (p.qd_rad_s[j] - m.qd_rad_s[j]) / (2.0 * h);
-                assert!(
-                    (v - c.qd_rad_s[j]).abs() < 1e-7,
-                    "velocity {v} vs {}",
-                    c.qd_rad_s[j]
-                );
-                assert!((a - c.qdd_rad_s2[j]).abs() < 1e-7, "acceleration {a}");
-            }
-        }
-    }
-
-    #[test]
-    fn basis_rows_reproduce_evaluation() {
-        let tr = example();
-        let w = tr.omega_rad_s();
-        let mut row = vec![0.0; 7];
-        let t = 2.345;
-        let pt = tr.eval(t);
-        for (j, jf) in tr.joints.iter().enumerate() {
-            let c = jf.packed();
-            for (d, want) in [
-                (Derivative::Position, pt.q_rad[j]),
-                (Derivative::Velocity, pt.qd_rad_s[j]),
-                (Derivative::Acceleration, pt.qdd_rad_s2[j]),
-            ] {
-                basis(d, 3, w, t, &mut row);
-                let got: f64 = row.iter().zip(&c).map(|(r, c)| r * c).sum();
-                assert!((got - want).abs() < 1e-12);
-            }
-            assert_eq!(JointFourier::from_packed(&c), *jf);
-        }
-    }
-
-    #[test]
-    fn sampling_includes_both_ends_at_the_requested_rate() {
-        let s = example().sample(100.0, 1);
-        assert_eq!(s.t_s.len(), 1001);
-        assert_eq!(s.t_s[0], 0.0);
-        assert!((s.t_s[1000] - 10.0).abs() < 1e-12);
-        assert!((s.t_s[1] - 0.01).abs() < 1e-12);
-    }
-}
-
 /// Largest harmonic count of a Fourier trajectory file (the designer uses 5).
 pub const MAX_HARMONICS: usize = 1000;
 
@@ -395,5 +321,79 @@ impl ExcitationTrajectory {
             }
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn example() -> ExcitationTrajectory {
+        ExcitationTrajectory {
+            period_s: 10.0,
+            harmonics: 3,
+            joints: vec![
+                JointFourier {
+                    q0_rad: 0.1,
+                    a_rad: vec![0.2, -0.1, 0.05],
+                    b_rad: vec![0.3, 0.0, -0.02],
+                },
+                JointFourier {
+                    q0_rad: -0.4,
+                    a_rad: vec![0.0, 0.1, 0.0],
+                    b_rad: vec![0.1, 0.1, 0.1],
+                },
+            ],
+        }
+    }
+
+    #[test]
+    fn derivatives_match_finite_differences() {
+        let tr = example();
+        let h = 1e-5;
+        for &t in &[0.0, 1.3, 4.7, 9.99] {
+            let (m, p, c) = (tr.eval(t - h), tr.eval(t + h), tr.eval(t));
+            for j in 0..2 {
+                let v = (p.q_rad[j] - m.q_rad[j]) / (2.0 * h);
+                let a = (p.qd_rad_s[j] - m.qd_rad_s[j]) / (2.0 * h);
+                assert!(
+                    (v - c.qd_rad_s[j]).abs() < 1e-7,
+                    "velocity {v} vs {}",
+                    c.qd_rad_s[j]
+                );
+                assert!((a - c.qdd_rad_s2[j]).abs() < 1e-7, "acceleration {a}");
+            }
+        }
+    }
+
+    #[test]
+    fn basis_rows_reproduce_evaluation() {
+        let tr = example();
+        let w = tr.omega_rad_s();
+        let mut row = vec![0.0; 7];
+        let t = 2.345;
+        let pt = tr.eval(t);
+        for (j, jf) in tr.joints.iter().enumerate() {
+            let c = jf.packed();
+            for (d, want) in [
+                (Derivative::Position, pt.q_rad[j]),
+                (Derivative::Velocity, pt.qd_rad_s[j]),
+                (Derivative::Acceleration, pt.qdd_rad_s2[j]),
+            ] {
+                basis(d, 3, w, t, &mut row);
+                let got: f64 = row.iter().zip(&c).map(|(r, c)| r * c).sum();
+                assert!((got - want).abs() < 1e-12);
+            }
+            assert_eq!(JointFourier::from_packed(&c), *jf);
+        }
+    }
+
+    #[test]
+    fn sampling_includes_both_ends_at_the_requested_rate() {
+        let s = example().sample(100.0, 1);
+        assert_eq!(s.t_s.len(), 1001);
+        assert_eq!(s.t_s[0], 0.0);
+        assert!((s.t_s[1000] - 10.0).abs() < 1e-12);
+        assert!((s.t_s[1] - 0.01).abs() < 1e-12);
     }
 }

@@ -266,6 +266,32 @@ fn find_fourier(v: &serde_json::Value) -> Option<ExcitationTrajectory> {
         .find_map(|inner| serde_json::from_value::<ExcitationTrajectory>(inner.clone()).ok())
 }
 
+/// The trajectory file `path` (`periods` periods of a Fourier file), or the built-in
+/// seeded rest-to-rest trajectory of `seed` over `n` joints.
+pub fn trajectory_or_seeded(
+    path: Option<&std::path::Path>,
+    periods: usize,
+    seed: u64,
+    n: usize,
+) -> anyhow::Result<CommandedTrajectory> {
+    match path {
+        Some(p) => CommandedTrajectory::load(p, periods),
+        None => Ok(CommandedTrajectory::Fourier {
+            series: ExcitationTrajectory::seeded_rest_to_rest(
+                seed,
+                &vec![0.0; n],
+                5,
+                10.0,
+                DEMO_LIMITS,
+            ),
+            periods,
+        }),
+    }
+}
+
+/// Limits of the built-in demo trajectories: (|q - rest| [rad], |qd| [rad/s], |qdd| [rad/s^2]).
+pub const DEMO_LIMITS: (f64, f64, f64) = (2.5, 2.5, 10.0);
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -354,29 +380,3 @@ mod tests {
         assert!(e.contains("line 3") && e.contains("not after"), "{e}");
     }
 }
-
-/// The trajectory file `path` (`periods` periods of a Fourier file), or the built-in
-/// seeded rest-to-rest trajectory of `seed` over `n` joints.
-pub fn trajectory_or_seeded(
-    path: Option<&std::path::Path>,
-    periods: usize,
-    seed: u64,
-    n: usize,
-) -> anyhow::Result<CommandedTrajectory> {
-    match path {
-        Some(p) => CommandedTrajectory::load(p, periods),
-        None => Ok(CommandedTrajectory::Fourier {
-            series: ExcitationTrajectory::seeded_rest_to_rest(
-                seed,
-                &vec![0.0; n],
-                5,
-                10.0,
-                DEMO_LIMITS,
-            ),
-            periods,
-        }),
-    }
-}
-
-/// Limits of the built-in demo trajectories: (|q - rest| [rad], |qd| [rad/s], |qdd| [rad/s^2]).
-pub const DEMO_LIMITS: (f64, f64, f64) = (2.5, 2.5, 10.0);
