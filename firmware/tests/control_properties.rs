@@ -5,6 +5,9 @@
 //! against a specification written here (message acceptance, watchdog, predictor
 //! inputs, source, flags and the limited torque), not against its own helpers.
 
+mod common;
+
+use common::drive_config;
 use firmware::control::*;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -24,31 +27,6 @@ fn nasty(rng: &mut ChaCha8Rng, plausible: f32) -> f32 {
         6 => f32::MIN_POSITIVE,
         7 => rng.gen_range(-10.0..10.0) * plausible,
         _ => rng.gen_range(-1.0..1.0) * plausible,
-    }
-}
-
-fn drive_config() -> DriveConfig {
-    DriveConfig {
-        current: CurrentLoopConfig::tuned(MotorParameters::BOARD, 20_000.0),
-        cascade: CascadeConfig {
-            rate_hz: 5000.0,
-            position_kp: 50.0,
-            position_ki: 1.0,
-            position_kd: 0.01,
-            max_velocity_rad_s: 3.0,
-            velocity_kp: 5.0,
-            velocity_ki: 50.0,
-            velocity_kd: 0.001,
-            max_current_a: 10.0,
-            velocity_filter_alpha: 0.2,
-        },
-        gear_ratio: 100.0,
-        encoder_offset_rad: 0.1,
-        max_current_a: 12.0,
-        overcurrent_trip_a: 20.0,
-        bus_min_v: 18.0,
-        bus_max_v: 60.0,
-        max_abs_q_ref_rad: 7.0,
     }
 }
 

@@ -3,33 +3,11 @@
 //! the motor's travel (counted across turns) over the gear ratio; latched faults stay
 //! until cleared.
 
+mod common;
+
+use common::drive_config as config;
 use firmware::control::*;
 use std::f32::consts::TAU;
-
-fn config() -> DriveConfig {
-    DriveConfig {
-        current: CurrentLoopConfig::tuned(MotorParameters::BOARD, 20_000.0),
-        cascade: CascadeConfig {
-            rate_hz: 5000.0,
-            position_kp: 50.0,
-            position_ki: 1.0,
-            position_kd: 0.01,
-            max_velocity_rad_s: 3.0,
-            velocity_kp: 5.0,
-            velocity_ki: 50.0,
-            velocity_kd: 0.001,
-            max_current_a: 10.0,
-            velocity_filter_alpha: 0.2,
-        },
-        gear_ratio: 100.0,
-        encoder_offset_rad: 0.1,
-        max_current_a: 12.0,
-        overcurrent_trip_a: 20.0,
-        bus_min_v: 18.0,
-        bus_max_v: 60.0,
-        max_abs_q_ref_rad: 7.0,
-    }
-}
 
 fn sample(motor_angle_rad: f32) -> SensorSample {
     SensorSample {

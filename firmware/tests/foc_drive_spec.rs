@@ -3,34 +3,22 @@
 //! (not from the implementation): measured currents, decoupling voltages, phase voltages
 //! about the star point, the feedforward's sum, and a zero or over-range bus.
 
+mod common;
+
 use firmware::control::foc::{self, AlphaBeta, Dq};
 use firmware::control::*;
 use std::f32::consts::{PI, TAU};
 
+/// The shared test drive; without `gains`, its outer loops' gains are zero (the
+/// feedforward alone commands the current).
 fn config(gains: bool) -> DriveConfig {
-    let g = if gains { 1.0 } else { 0.0 };
-    DriveConfig {
-        current: CurrentLoopConfig::tuned(MotorParameters::BOARD, 20_000.0),
-        cascade: CascadeConfig {
-            rate_hz: 5000.0,
-            position_kp: 50.0 * g,
-            position_ki: 1.0 * g,
-            position_kd: 0.01 * g,
-            max_velocity_rad_s: 3.0,
-            velocity_kp: 5.0 * g,
-            velocity_ki: 50.0 * g,
-            velocity_kd: 0.001 * g,
-            max_current_a: 10.0,
-            velocity_filter_alpha: 0.2,
-        },
-        gear_ratio: 100.0,
-        encoder_offset_rad: 0.1,
-        max_current_a: 12.0,
-        overcurrent_trip_a: 20.0,
-        bus_min_v: 18.0,
-        bus_max_v: 60.0,
-        max_abs_q_ref_rad: 7.0,
+    let mut c = common::drive_config();
+    if !gains {
+        let k = &mut c.cascade;
+        (k.position_kp, k.position_ki, k.position_kd) = (0.0, 0.0, 0.0);
+        (k.velocity_kp, k.velocity_ki, k.velocity_kd) = (0.0, 0.0, 0.0);
     }
+    c
 }
 
 fn sample(angle: f32, ia: f32, ib: f32) -> SensorSample {
