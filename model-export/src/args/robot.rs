@@ -51,19 +51,6 @@ impl ChainArgs {
         })
     }
 
-    /// The options that give `selection` (the inverse of [`ChainArgs::selection`]).
-    pub fn from_selection(selection: &ChainSelection) -> Self {
-        ChainArgs {
-            base_link: selection.base_link.clone(),
-            tip_link: selection.tip_link.clone(),
-            side_joint: selection
-                .side_joint_positions
-                .iter()
-                .map(|(n, q)| format!("{n}={q}"))
-                .collect(),
-        }
-    }
-
     /// Loads the robot's chain and prints the folded joints' warning to stderr.
     pub fn load_and_warn(&self, source: &RobotSource) -> anyhow::Result<Robot> {
         Ok(warn(source.load_chain(&self.selection()?)?))

@@ -198,13 +198,6 @@ fn p(path: &Path) -> String {
     path.display().to_string()
 }
 
-fn read_json(path: &Path) -> Result<Value> {
-    let text =
-        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-    serde_json::from_str(&text).with_context(|| format!("parsing {}", path.display()))
-}
-
-/// Runs the demo.
 /// The stages that need cargo: building the board firmware with the exported model and the
 /// size and cycle budget run. The xtask runs them; `model-export demo` alone cannot.
 pub trait FirmwareStages {
@@ -856,7 +849,7 @@ impl Report {
             "evaluation": evaluate,
             "evaluation_increment": evaluate_inc,
             "quantisation": accuracy,
-            "budget": budget.map(|_| read_json(&out.join("firmware/budget.json"))).transpose()?,
+            "budget": budget.map(|_| read_report::<Value>(&out.join("firmware/budget.json"))).transpose()?,
         });
         Ok(Report {
             markdown: md,
