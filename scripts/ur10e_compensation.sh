@@ -9,7 +9,9 @@
 #   rest trimmed at 0.01 rad/s (a static pose is kept whole); measured torque unfiltered;
 # - train the networks (NETS, below) on the training runs, validated on the validation run;
 # - evaluate every network on every test run and static pose, with the friction-feature
-#   least-squares baseline fitted on the same training datasets (`--baseline-data`);
+#   least-squares baseline fitted on the same training datasets (`--baseline-data`), each
+#   prediction also followed by the drive's online friction adaptation, scored against the
+#   measured torque as logged and low-passed at SCORE_CUTOFF_HZ;
 # - OUT_DIR/summary.json (per run and joint, and the training time per network) and a
 #   Markdown table of it.
 # Runs are named by file name without `.csv`. Training runs: every identification run
@@ -21,7 +23,9 @@
 # Usage: bash scripts/ur10e_compensation.sh DATASET_DIR OUT_DIR
 # Environment (optional): TEST_RUNS, VALIDATION_RUN, JOINTS (1,2,3,4,5,6), EPOCHS (60),
 # NETS (names from the table below, space separated; default all),
-# FIRST_STAGE_ARGS (default `--coulomb-smoothing-rad-s 0.02 --friction-model extended`), CARGO_TARGET_DIR.
+# FIRST_STAGE_ARGS (default `--coulomb-smoothing-rad-s 0.02 --friction-model extended`),
+# ADAPT_TIME_CONSTANT_S (2) and ADAPT_MAX_NM (10): the drive's online friction adaptation,
+# SCORE_CUTOFF_HZ (5): the low-pass of the second scoring, CARGO_TARGET_DIR.
 set -euo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
 usage="usage: ur10e_compensation.sh DATASET_DIR OUT_DIR"
@@ -31,6 +35,9 @@ I="$D/identification"
 V="$D/validation"
 [ -f "$D/ur10e.urdf" ] && [ -d "$I" ] || { echo "$D: no ur10e.urdf or identification/" >&2; exit 2; }
 joints="${JOINTS:-1,2,3,4,5,6}"
+adapt_time_constant_s="${ADAPT_TIME_CONSTANT_S:-2}"
+adapt_max_nm="${ADAPT_MAX_NM:-10}"
+score_cutoff_hz="${SCORE_CUTOFF_HZ:-5}"
 epochs="${EPOCHS:-60}"
 read -r -a first_stage_args <<< "${FIRST_STAGE_ARGS:---coulomb-smoothing-rad-s 0.02 --friction-model extended}"
 # name preset dataset-folder: the paper's presets over the paper model (as
@@ -134,15 +141,26 @@ for spec in "${all_nets[@]}"; do
       --out "lstm_$tag.safetensors" --loss-plot "loss_$tag.svg" --report "train_$tag.json" \
       > "train_$tag.txt"
     echo "$name $(date +%s.%N) $start" >> train_seconds.txt
+    # Each network twice: scored against the torque as logged, and low-passed at
+    # SCORE_CUTOFF_HZ (sensor noise no feedforward can cancel left out); both with the
+    # drive's online friction adaptation after every prediction (`adapted` figures).
     for r in "${evaluated[@]}"; do
-      "$ME" evaluate --model "lstm_$tag.safetensors" --data "$dir/$r.csv" --preset "$preset" \
-        --joints "$g" --baseline-data "$(train_list "$dir")" \
-        --report "eval/${tag}_$r.json" > "eval/${tag}_$r.txt"
+      for scoring in raw lp; do
+        score=()
+        [ "$scoring" = raw ] || score=(--score-cutoff-hz "$score_cutoff_hz")
+        suffix=""
+        [ "$scoring" = raw ] || suffix="_lp"
+        "$ME" evaluate --model "lstm_$tag.safetensors" --data "$dir/$r.csv" --preset "$preset" \
+          --joints "$g" --baseline-data "$(train_list "$dir")" \
+          --adapt-time-constant-s "$adapt_time_constant_s" --adapt-max-nm "$adapt_max_nm" \
+          "${score[@]}" --report "eval/${tag}_$r$suffix.json" > "eval/${tag}_$r$suffix.txt"
+      done
     done
   done
 done
 
-NETS_RUN="${nets_run[*]}" EVALUATED="${evaluated[*]}" JOINT_LIST="$joints" python3 - << 'EOF'
+NETS_RUN="${nets_run[*]}" EVALUATED="${evaluated[*]}" JOINT_LIST="$joints" \
+  ADAPT_T="$adapt_time_constant_s" ADAPT_MAX="$adapt_max_nm" SCORE_HZ="$score_cutoff_hz" python3 - << 'EOF'
 import csv, json, math, os, re
 
 nets = os.environ["NETS_RUN"].split()
@@ -162,11 +180,13 @@ def dataset_figures(path):
     return out, len(rows)
 
 
-def outputs(name, run):
+def outputs(name, run, suffix=""):
     """Per joint: the evaluate report's figures for this network (or its per-joint
-    networks, `NAME_jN`) and run."""
+    networks, `NAME_jN`) and run (`suffix` `_lp`: the low-passed scoring)."""
     res = {}
-    for path in [f"eval/{name}_{run}.json"] + [f"eval/{name}_j{j}_{run}.json" for j in joints]:
+    for path in [f"eval/{name}_{run}{suffix}.json"] + [
+        f"eval/{name}_j{j}_{run}{suffix}.json" for j in joints
+    ]:
         if not os.path.exists(path):
             continue
         with open(path) as f:
@@ -177,12 +197,34 @@ def outputs(name, run):
     return res
 
 
-def first(names, run, j, key):
+def adapted(name, run, j, key, suffix=""):
+    return (outputs(name, run, suffix).get(j, {}).get("adapted") or {}).get(key)
+
+
+def first(names, run, j, key, suffix=""):
     for n in names:
-        v = outputs(n, run).get(j, {}).get(key)
+        v = outputs(n, run, suffix).get(j, {}).get(key)
         if v is not None:
             return v
     return None
+
+
+def scored(run, j, suffix):
+    """One scoring's figures: the paper model, the first stage, the linear baseline, each
+    network, and each of them followed by the online adaptation."""
+    same_step = ["feedforward_first_stage", "drive", "paper_first_stage"]
+    return {
+        "model_rms_nm": first(["feedforward"], run, j, "rms_before", suffix),
+        "first_stage_rms_nm": first(["feedforward_first_stage", "drive"], run, j, "rms_before", suffix),
+        "baseline_rms_nm": first(same_step, run, j, "baseline_rms_nm", suffix),
+        "compensated_rms_nm": {n: outputs(n, run, suffix).get(j, {}).get("rms_after") for n in nets},
+        "adapted": {
+            "model_rms_nm": adapted("feedforward", run, j, "model_rms_nm", suffix),
+            "first_stage_rms_nm": next((v for n in same_step if (v := adapted(n, run, j, "model_rms_nm", suffix)) is not None), None),
+            "baseline_rms_nm": next((v for n in same_step if (v := adapted(n, run, j, "baseline_rms_nm", suffix)) is not None), None),
+            "compensated_rms_nm": {n: adapted(n, run, j, "compensated_rms_nm", suffix) for n in nets},
+        },
+    }
 
 
 # Wall-clock training time per network [s] (a drive compensator: its per-joint networks
@@ -192,7 +234,16 @@ with open("train_seconds.txt") as f:
     for line in f:
         name, end, start = line.split()
         train_seconds[name] = train_seconds.get(name, 0.0) + float(end) - float(start)
-summary = {"nets": nets, "train_seconds": train_seconds, "runs": {}}
+summary = {
+    "nets": nets,
+    "train_seconds": train_seconds,
+    "adaptation": {
+        "time_constant_s": float(os.environ["ADAPT_T"]),
+        "max_correction_nm": float(os.environ["ADAPT_MAX"]),
+    },
+    "score_cutoff_hz": float(os.environ["SCORE_HZ"]),
+    "runs": {},
+}
 for run in runs:
     paper, samples = dataset_figures(f"data-paper/{run}.csv")
     first_stage, _ = dataset_figures(f"data/{run}.csv")
@@ -207,6 +258,8 @@ for run in runs:
             "compensated_rms_nm": {n: outputs(n, run).get(j, {}).get("rms_after") for n in nets},
             "persistence_rms_nm": first(["paper", "paper_first_stage"], run, j, "rms_persistence"),
             "moving_samples": paper[j][1],
+            "adapted": scored(run, j, "")["adapted"],
+            "low_passed": scored(run, j, "_lp"),
         }
     summary["runs"][run] = {"samples": samples, "joints": per_joint}
 
@@ -218,15 +271,32 @@ def cell(v):
     return "-" if v is None else f"{v:.3f}"
 
 
-head = ["run", "joint", "model", "first stage", "baseline"] + nets + ["persistence", "moving"]
-print("\nRMS [N m] over the evaluated rows (summary.json):\n")
-print("| " + " | ".join(head) + " |")
-print("|" + "---|" * 2 + "---:|" * (len(head) - 2))
-for run, r in summary["runs"].items():
-    for j, x in r["joints"].items():
-        vals = [x["model_rms_nm"], x["first_stage_rms_nm"], x["baseline_rms_nm"]]
-        vals += [x["compensated_rms_nm"][n] for n in nets] + [x["persistence_rms_nm"]]
-        print(f"| {run} | {j} | " + " | ".join(cell(v) for v in vals) + f" | {x['moving_samples']} |")
+def table(title, pick):
+    head = ["run", "joint", "model", "first stage", "baseline"] + nets
+    print(f"\n{title}\n")
+    print("| " + " | ".join(head) + " |")
+    print("|" + "---|" * 2 + "---:|" * (len(head) - 2))
+    for run, r in summary["runs"].items():
+        for j, x in r["joints"].items():
+            vals = pick(x)
+            print(f"| {run} | {j} | " + " | ".join(cell(v) for v in vals) + " |")
+
+
+table(
+    "RMS [N m] over the evaluated rows, torque as logged (summary.json):",
+    lambda x: [x["model_rms_nm"], x["first_stage_rms_nm"], x["baseline_rms_nm"]]
+    + [x["compensated_rms_nm"][n] for n in nets],
+)
+table(
+    "The same, each prediction followed by the online friction adaptation (`adapted`):",
+    lambda x: [x["adapted"]["model_rms_nm"], x["adapted"]["first_stage_rms_nm"], x["adapted"]["baseline_rms_nm"]]
+    + [x["adapted"]["compensated_rms_nm"][n] for n in nets],
+)
+table(
+    f"Scored against the torque low-passed at {summary['score_cutoff_hz']} Hz, adapted (`low_passed.adapted`; model = paper model, not adapted):",
+    lambda x: [x["low_passed"]["model_rms_nm"], x["low_passed"]["adapted"]["first_stage_rms_nm"], x["low_passed"]["adapted"]["baseline_rms_nm"]]
+    + [x["low_passed"]["adapted"]["compensated_rms_nm"][n] for n in nets],
+)
 EOF
 python3 -c 'import json; print("training time [s]:", json.load(open("summary.json"))["train_seconds"])'
 echo "wrote $out/summary.json"

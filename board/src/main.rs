@@ -187,7 +187,7 @@ mod app {
         let lstm = lstm.with_linear_stage(compiled::LINEAR_STAGE);
         let mut compensator = match plan.compensator {
             Some(config) => match Compensator::<JOINTS, _, _>::new(config, model(), lstm) {
-                Ok(c) => Some(c),
+                Ok(c) => Some(c.with_adaptation(plan.adaptation)),
                 Err(_) => cortex_m::asm::udf(),
             },
             None => None,

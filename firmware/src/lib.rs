@@ -4,7 +4,8 @@
 //! the host exporter and the tests call the same code that runs on the MCU, and
 //! `host-tests` proves the results are bit-identical on both. The modules in data-flow
 //! order: numerics (`math`, `dsp`), the rigid-body model (`dynamics`), the drive's
-//! features (`features`), the network (`nn`), the compiled-in model (`model`), the
+//! features (`features`), the network (`nn`), the online friction adaptation
+//! (`adaptation`), the compiled-in model (`model`), the
 //! control loop (`control`), the encoder driver (`drivers`) and logging (`log`).
 #![cfg_attr(not(test), no_std)]
 #![deny(unsafe_code)]
@@ -14,6 +15,7 @@
 // compiles here (the default model) and in crates that depend on the firmware.
 extern crate self as firmware;
 
+pub mod adaptation;
 pub mod control;
 pub mod drivers;
 pub mod dsp;

@@ -490,3 +490,102 @@ fn evaluate_reports_the_baseline_and_refuses_bad_baseline_data() {
         assert!(!rep.exists());
     }
 }
+
+#[test]
+fn evaluate_runs_the_drive_adaptation_and_scores_against_the_low_passed_torque() {
+    let dir = tempfile::tempdir().unwrap();
+    let paths = datasets(dir.path(), 0.05);
+    let model = dir.path().join("ff.safetensors");
+    feedforward_model(&model);
+    // A test run whose joint 1 carries a 2 N·m offset no training run has (friction
+    // drift): the baseline misses it, the adaptation learns it from the measured torque.
+    let test = dir.path().join("test.csv");
+    write_dataset(&test, 2000, 99, true, 0.05);
+    let mut lines: Vec<String> = std::fs::read_to_string(&test)
+        .unwrap()
+        .lines()
+        .map(String::from)
+        .collect();
+    let k = lines[0]
+        .split(',')
+        .position(|n| n == "tau_meas_j1")
+        .unwrap();
+    for l in lines.iter_mut().skip(1) {
+        let mut f: Vec<String> = l.split(',').map(String::from).collect();
+        f[k] = (f[k].parse::<f32>().unwrap() + 2.0).to_string();
+        *l = f.join(",");
+    }
+    std::fs::write(&test, lines.join("\n") + "\n").unwrap();
+    let base = format!("{},{}", paths[0].display(), paths[1].display());
+    let run = |report: &Path, extra: &[&str]| {
+        let mut args: Vec<OsString> = vec![
+            "--model".into(),
+            model.clone().into(),
+            "--data".into(),
+            test.clone().into(),
+            "--preset".into(),
+            "feedforward".into(),
+            "--joints".into(),
+            "1,3".into(),
+            "--baseline-data".into(),
+            base.clone().into(),
+            "--report".into(),
+            report.to_path_buf().into(),
+        ];
+        args.extend(extra.iter().map(OsString::from));
+        evaluate(&args)
+    };
+    let report = dir.path().join("adapted.json");
+    let out = run(&report, &["--adapt-time-constant-s", "0.5"]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(String::from_utf8_lossy(&out.stdout).contains("adapted: baseline"));
+    let j: serde_json::Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
+    assert_eq!(j["adaptation"]["time_constant_s"], 0.5);
+    assert!(j["score_cutoff_hz"].is_null());
+    let o = &j["data"][0]["outputs"];
+    let (static_nm, adapted_nm) = (
+        o[0]["baseline_rms_nm"].as_f64().unwrap(),
+        o[0]["adapted"]["baseline_rms_nm"].as_f64().unwrap(),
+    );
+    assert!(
+        static_nm > 1.9 && adapted_nm < 0.5,
+        "{static_nm} -> {adapted_nm}"
+    );
+    // Joint 3 has no drift: the adaptation costs little there.
+    let (s3, a3) = (
+        o[1]["baseline_rms_nm"].as_f64().unwrap(),
+        o[1]["adapted"]["baseline_rms_nm"].as_f64().unwrap(),
+    );
+    assert!(a3 < 1.5 * s3, "{s3} -> {a3}");
+
+    // Scored against the torque low-passed at 5 Hz: the white sensor noise drops out.
+    let low = dir.path().join("low.json");
+    let out = run(&low, &["--score-cutoff-hz", "5"]);
+    assert!(out.status.success());
+    let l: serde_json::Value = serde_json::from_slice(&std::fs::read(&low).unwrap()).unwrap();
+    assert_eq!(l["score_cutoff_hz"], 5.0);
+    let raw = o[1]["rms_before"].as_f64().unwrap();
+    let filtered = l["data"][0]["outputs"][1]["rms_before"].as_f64().unwrap();
+    assert!(filtered < raw, "{raw} -> {filtered}");
+
+    // A cut-off at or above Nyquist (50 Hz here), a zero time constant: refused, the
+    // file named, nothing written.
+    for (extra, words) in [
+        (&["--score-cutoff-hz", "60"][..], ["test.csv", "Nyquist"]),
+        (
+            &["--adapt-time-constant-s", "0"][..],
+            ["--adapt-time-constant-s", "positive"],
+        ),
+    ] {
+        let refused = dir.path().join("refused.json");
+        let out = run(&refused, extra);
+        assert!(!out.status.success());
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(words.iter().all(|w| err.contains(w)), "{err}");
+        assert!(!refused.exists());
+    }
+}

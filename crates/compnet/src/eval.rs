@@ -1,8 +1,10 @@
 //! The paper's evaluation, streaming the FIRMWARE f32 step over whole sequences.
+use super::adaptation;
 use super::baseline::LinearBaseline;
 use super::data::{FeatureSpec, Sequence, Table};
 use super::model::LstmModel;
 use anyhow::{Result, bail};
+use firmware::adaptation::AdaptationConfig;
 use serde::{Deserialize, Serialize};
 
 /// Figures for one output (one joint).
@@ -90,6 +92,91 @@ pub struct ReportRow {
     /// RMS [N·m] of `tau_meas - baseline` on the same rows (`None`: no baseline given, or
     /// the output is not a joint's measured torque).
     pub baseline_rms_nm: Option<f64>,
+    /// The same predictions followed by the drive's online friction adaptation (`None`:
+    /// not asked for, or the output is not a joint's measured torque).
+    #[serde(default)]
+    pub adapted: Option<AdaptedRms>,
+}
+
+/// RMS [N·m] of each prediction followed by the online friction adaptation
+/// ([`crate::adaptation`]), on the same rows and against the same torque.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct AdaptedRms {
+    /// The identified model alone, adapted.
+    pub model_rms_nm: f64,
+    /// The linear baseline, adapted (`None`: no baseline given).
+    pub baseline_rms_nm: Option<f64>,
+    /// The network's prediction, adapted.
+    pub compensated_rms_nm: f64,
+}
+
+impl AdaptedRms {
+    /// Every number (checked finite before a report is written).
+    pub fn figures(&self) -> impl Iterator<Item = f64> + '_ {
+        [self.model_rms_nm, self.compensated_rms_nm]
+            .into_iter()
+            .chain(self.baseline_rms_nm)
+    }
+}
+
+/// Per output of `spec`: the model alone, the baseline and the network `m`, each followed
+/// by the online adaptation `config` over `table` (which learns from the measured torque
+/// as logged), scored on the sequence's rows against `scored`'s `tau_meas` (the same
+/// table, or [`adaptation::low_passed`]); `None` for outputs that are not a joint's
+/// measured torque.
+pub fn adapted_rms(
+    m: &LstmModel,
+    spec: &FeatureSpec,
+    (table, scored): (&Table, &Table),
+    seq: &Sequence,
+    baseline: Option<&LinearBaseline>,
+    config: AdaptationConfig,
+) -> Result<Vec<Option<AdaptedRms>>> {
+    let pred = m.stream(&seq.inputs)?;
+    let baseline_pred = baseline.map(|b| b.predict(table)).transpose()?;
+    let rows = table.len();
+    let mut out = Vec::new();
+    for (k, t) in spec.targets.iter().enumerate() {
+        let Some(j) = target_joint(spec, k) else {
+            out.push(None);
+            continue;
+        };
+        if seq.len() + t.shift > rows {
+            bail!(
+                "{}: {} steps shifted by {} exceed the table's {rows} rows",
+                table.path.display(),
+                seq.len(),
+                t.shift
+            );
+        }
+        // Absolute torque predictions per table row (NaN where the sequence has none).
+        let per_row = |value: &dyn Fn(usize) -> f64| -> Vec<f64> {
+            let mut v = vec![f64::NAN; rows];
+            for r in 0..seq.len() {
+                v[r + t.shift] = value(r) + seq.offset[r][k] as f64;
+            }
+            v
+        };
+        let scored = scored.column(&format!("tau_meas_j{j}"))?;
+        let span = t.shift..t.shift + seq.len();
+        let rms = |p: Vec<f64>| -> Result<f64> {
+            let a = adaptation::adapt(table, j, &p, config)?;
+            Ok(adaptation::rms_nm(scored, &a, span.clone()).unwrap_or(0.0))
+        };
+        let baseline_rms_nm = match (&baseline_pred, baseline) {
+            (Some(p), Some(b)) => match b.joints.iter().position(|&x| x == j) {
+                Some(i) => Some(rms(p[i].clone())?),
+                None => None,
+            },
+            _ => None,
+        };
+        out.push(Some(AdaptedRms {
+            model_rms_nm: rms(per_row(&|r| seq.model_only[r][k] as f64))?,
+            baseline_rms_nm,
+            compensated_rms_nm: rms(per_row(&|r| pred[r][k] as f64))?,
+        }));
+    }
+    Ok(out)
 }
 
 /// The robot joint (1-based) whose measured torque `tau_meas_jN` an output predicts.
@@ -149,16 +236,23 @@ pub fn baseline_rms(
     Ok(out)
 }
 
-/// A Markdown table of the figures with the linear baseline's RMS [N·m] beside them.
+/// A Markdown table of the figures with the linear baseline's RMS [N·m] beside them, and
+/// the adapted figures when the rows have them.
 pub fn markdown_with_baseline(rows: &[ReportRow]) -> String {
+    let adapted = rows.iter().any(|r| r.adapted.is_some());
     let mut s = String::from(
-        "| output | RMS before | RMS after | reduction % | RMS persistence | RMS baseline |\n|---|---:|---:|---:|---:|---:|\n",
+        "| output | RMS before | RMS after | reduction % | RMS persistence | RMS baseline |",
     );
+    if adapted {
+        s += " adapted: model | adapted: baseline | adapted: network |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|\n";
+    } else {
+        s += "\n|---|---:|---:|---:|---:|---:|\n";
+    }
     let cell = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.4}"));
     for r in rows {
         let e = &r.eval;
         s += &format!(
-            "| {} | {:.4} | {:.4} | {:.1} | {} | {} |\n",
+            "| {} | {:.4} | {:.4} | {:.1} | {} | {} |",
             e.name,
             e.rms_before,
             e.rms_after,
@@ -166,6 +260,16 @@ pub fn markdown_with_baseline(rows: &[ReportRow]) -> String {
             cell(e.rms_persistence),
             cell(r.baseline_rms_nm)
         );
+        if adapted {
+            let a = r.adapted.as_ref();
+            s += &format!(
+                " {} | {} | {} |",
+                cell(a.map(|a| a.model_rms_nm)),
+                cell(a.and_then(|a| a.baseline_rms_nm)),
+                cell(a.map(|a| a.compensated_rms_nm))
+            );
+        }
+        s += "\n";
     }
     s
 }

@@ -2,6 +2,7 @@
 //! LSTM op, PyTorch safetensors interchange, and evaluation through the firmware step.
 #![deny(unsafe_code)] // one exception: gemm (a checked wrapper around sgemm)
 #![warn(missing_docs)]
+pub mod adaptation;
 pub mod baseline;
 pub mod data;
 pub mod eval;

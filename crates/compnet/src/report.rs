@@ -83,4 +83,20 @@ pub struct EvaluationReport {
     pub data: Vec<EvaluatedRun>,
     /// The linear baseline, when one was fitted.
     pub baseline: Option<BaselineRef>,
+    /// The online friction adaptation the `adapted` figures ran, when asked for.
+    #[serde(default)]
+    pub adaptation: Option<AdaptationRef>,
+    /// The cut-off [Hz] of the low-pass the measured torque was scored through
+    /// (`None`: as logged).
+    #[serde(default)]
+    pub score_cutoff_hz: Option<f64>,
+}
+
+/// The online friction adaptation's settings in a report.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct AdaptationRef {
+    /// Forgetting time constant [s].
+    pub time_constant_s: f32,
+    /// Largest |correction| [N·m].
+    pub max_correction_nm: f32,
 }

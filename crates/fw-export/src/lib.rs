@@ -1376,6 +1376,12 @@ fn write_profiles(s: &mut String, profiles: &[firmware::control::JointProfile]) 
             f32_lit(p.feedforward_max_current_a),
             p.bus_baud
         );
+        let _ = writeln!(
+            s,
+            "        adaptation: firmware::adaptation::AdaptationConfig {{ time_constant_s: {}, max_correction_nm: {} }},",
+            f32_lit(p.adaptation.time_constant_s),
+            f32_lit(p.adaptation.max_correction_nm)
+        );
         let _ = writeln!(s, "    }},");
     }
     let _ = writeln!(s, "];");

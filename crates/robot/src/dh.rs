@@ -113,6 +113,8 @@ struct ProfileToml {
     lstm_retry_ticks: Option<u16>,
     feedforward_max_current_a: Option<f64>,
     bus_baud: Option<u32>,
+    adaptation_time_constant_s: Option<f64>,
+    max_adaptation_nm: Option<f64>,
 }
 
 #[derive(Debug, Clone, Copy, Deserialize)]
@@ -195,6 +197,11 @@ impl ProfileToml {
             self.feedforward_max_current_a,
         );
         p.bus_baud = self.bus_baud.unwrap_or(p.bus_baud);
+        set(
+            &mut p.adaptation.time_constant_s,
+            self.adaptation_time_constant_s,
+        );
+        set(&mut p.adaptation.max_correction_nm, self.max_adaptation_nm);
         p
     }
 }

@@ -6,6 +6,8 @@
 
 use super::faults::FaultFlags;
 use super::message::{JointState, JointStateMessage, SEQUENCE_WINDOW, StateLimits};
+use crate::adaptation::{self, ADAPTED_LEVELS, AdaptationConfig, FrictionAdaptation};
+use crate::features::RestDirection;
 
 /// What a predictor sees: every modelled joint's latest valid state (this joint's
 /// own from its sensors, the others' from the state bus) and, for the LSTM stage,
@@ -184,6 +186,8 @@ pub struct Compensator<const J: usize, M, L> {
     lstm_blend_ticks: u16,
     lstm_off_ticks: u16,
     inputs_were_ok: bool,
+    adaptation: FrictionAdaptation,
+    rest: RestDirection,
 }
 
 impl<const J: usize, M: TorquePredictor<J>, L: TorquePredictor<J>> Compensator<J, M, L> {
@@ -218,7 +222,24 @@ impl<const J: usize, M: TorquePredictor<J>, L: TorquePredictor<J>> Compensator<J
             lstm_blend_ticks: 0,
             lstm_off_ticks: 0,
             inputs_were_ok: false,
+            adaptation: FrictionAdaptation::new(AdaptationConfig::OFF, config.rate_hz),
+            rest: RestDirection::new(),
         })
+    }
+
+    /// The same compensator with the online friction adaptation
+    /// ([`crate::adaptation`]) after its model and LSTM stages: it learns this joint's
+    /// friction and offset drift from the torque measured since each tick
+    /// (`tau_meas_nm` of the own state) at the compensator's rate.
+    pub fn with_adaptation(mut self, config: AdaptationConfig) -> Self {
+        self.adaptation = FrictionAdaptation::new(config, self.config.rate_hz);
+        self
+    }
+
+    /// The adaptation's learned levels [N*m]: offset, Coulomb, held at rest (zero when
+    /// it is off).
+    pub fn adapted_levels_nm(&self) -> [f32; ADAPTED_LEVELS] {
+        self.adaptation.levels_nm()
     }
 
     /// The configuration.
@@ -407,12 +428,18 @@ impl<const J: usize, M: TorquePredictor<J>, L: TorquePredictor<J>> Compensator<J
             if !super::within(model, cfg.state_limits.max_abs_tau_nm) {
                 faults |= FaultFlags::MODEL_INVALID;
                 self.ff_blend_ticks = 0;
+                self.adaptation.restart();
             } else {
                 target = model;
                 source = FeedforwardSource::Model;
                 if L::PRESENT {
                     target = self.lstm_stage(&mut input, model_nm, &mut faults, &mut source);
                 }
+                // The adaptation learns from the torque measured since the last tick
+                // and corrects this one (a no-op when off).
+                let qd = own.qd_ref_rad_s;
+                let x = adaptation::regressors(qd, self.rest.update(qd));
+                target += self.adaptation.step(x, target, own.tau_meas_nm);
                 // Blend the whole feedforward in after a fallback to zero.
                 let w = self.ff_blend_ticks as f32 / cfg.warmup_ticks as f32;
                 if self.ff_blend_ticks < cfg.warmup_ticks {
@@ -423,6 +450,7 @@ impl<const J: usize, M: TorquePredictor<J>, L: TorquePredictor<J>> Compensator<J
             }
         } else {
             self.ff_blend_ticks = 0;
+            self.adaptation.restart();
         }
         self.inputs_were_ok = inputs_ok;
 
@@ -633,6 +661,51 @@ mod tests {
             }
         }
         panic!("did not settle at {want} from {source:?}");
+    }
+
+    #[test]
+    fn the_adaptation_learns_the_offset_the_stages_miss_and_stops_on_bad_input() {
+        // Model + LSTM give 2 q + 2 + 1 = 7 N*m at q = 3 (others at 0.5: coupling 0);
+        // the joint measures 8.5 N*m: 1.5 N*m of offset the stages do not know.
+        let cfg = AdaptationConfig {
+            time_constant_s: 0.2,
+            max_correction_nm: 1.0,
+        };
+        let mut c = new().with_adaptation(cfg);
+        let own = JointState {
+            q_ref_rad: 3.0,
+            tau_meas_nm: 8.5,
+            ..Default::default()
+        };
+        let mut last = CompensatorOutput::default();
+        for k in 1..2000 {
+            for j in [0u8, 2] {
+                c.receive(&JointStateMessage {
+                    joint: j,
+                    session: 0,
+                    sequence: k as u16,
+                    timestamp_us: k * 1000,
+                    state: state(0.5),
+                });
+            }
+            last = c.tick(&own, k * 1000);
+        }
+        // Learned up to its limit of 1 N*m, and no further.
+        assert!((last.torque_nm - 8.0).abs() < 1e-3, "{last:?}");
+        assert!((c.adapted_levels_nm()[0] - 1.0).abs() < 1e-3);
+        // A non-finite measured torque is refused with the state: zero, nothing learned.
+        let levels = c.adapted_levels_nm();
+        let bad = JointState {
+            tau_meas_nm: f32::NAN,
+            ..own
+        };
+        let o = c.tick(&bad, 2000 * 1000);
+        assert_eq!((o.source, o.torque_nm), (FeedforwardSource::Zero, 0.0));
+        assert_eq!(c.adapted_levels_nm(), levels);
+        // Off: the stages alone.
+        let mut off = new().with_adaptation(AdaptationConfig::OFF);
+        let k = settle(&mut off, 0, 7.0, FeedforwardSource::ModelLstm);
+        assert!(k > 5 && off.adapted_levels_nm() == [0.0; ADAPTED_LEVELS]);
     }
 
     #[test]

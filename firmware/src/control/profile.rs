@@ -13,6 +13,7 @@ use super::compensator::{BusClock, CompensatorConfig};
 use super::drive::DriveConfig;
 use super::foc::{CurrentLoopConfig, MotorParameters};
 use super::message::StateLimits;
+use crate::adaptation::AdaptationConfig;
 
 /// Everything one joint's drive and compensator need beyond the compiled-in model
 /// and the board's own constants (PWM rate, ADC scales).
@@ -61,12 +62,15 @@ pub struct JointProfile {
     pub feedforward_max_current_a: f32,
     /// State-bus line rate, baud (the board's UART; 8N1).
     pub bus_baud: u32,
+    /// The online friction adaptation after the model and LSTM stages
+    /// ([`crate::adaptation`]; a zero time constant turns it off).
+    pub adaptation: AdaptationConfig,
 }
 
 impl JointProfile {
     /// The joint-drive board's values: the wrist motor ([`MotorParameters::BOARD`]),
     /// a 100:1 gear, the cascade at 5 kHz, the UART state bus at 2 Mbaud with
-    /// free-running clocks. The default of every field a robot description leaves out.
+    /// free-running clocks, the friction adaptation over 2 s within +-10 N*m. The default of every field a robot description leaves out.
     pub const BOARD: JointProfile = JointProfile {
         motor: MotorParameters::BOARD,
         gear_ratio: 100.0,
@@ -110,6 +114,10 @@ impl JointProfile {
         lstm_retry_ticks: 50,
         feedforward_max_current_a: 12.0,
         bus_baud: 2_000_000,
+        adaptation: AdaptationConfig {
+            time_constant_s: 2.0,
+            max_correction_nm: 10.0,
+        },
     };
 
     /// Joint-side torque per A of motor q current, N*m/A (motor torque constant x
@@ -176,7 +184,8 @@ impl JointProfile {
         let m = &self.motor;
         let c = &self.cascade;
         let s = &self.state_limits;
-        let checks: [(bool, &'static str); 35] = [
+        let a = &self.adaptation;
+        let checks: [(bool, &'static str); 37] = [
             (m.pole_pairs >= 1, "pole_pairs"),
             (pos(m.phase_resistance_ohm), "phase_resistance_ohm"),
             (pos(m.phase_inductance_h), "phase_inductance_h"),
@@ -230,6 +239,8 @@ impl JointProfile {
                 "feedforward_max_current_a",
             ),
             (self.bus_baud >= 1, "bus_baud"),
+            (gain(a.time_constant_s), "adaptation_time_constant_s"),
+            (gain(a.max_correction_nm), "max_adaptation_nm"),
         ];
         let mut k = 0;
         while k < checks.len() {

@@ -23,6 +23,7 @@ use super::compensator::CompensatorConfig;
 use super::drive::DriveConfig;
 use super::message::crc16;
 use super::profile::JointProfile;
+use crate::adaptation::AdaptationConfig;
 
 /// The per-board configuration block: which robot joint this board drives.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -142,6 +143,9 @@ pub struct StartupPlan {
     /// The compensator's configuration; `None` on a refusal (no feedforward, no state
     /// frames).
     pub compensator: Option<CompensatorConfig>,
+    /// The compensator's friction adaptation (`Compensator::with_adaptation`); off on
+    /// a refusal.
+    pub adaptation: AdaptationConfig,
 }
 
 /// The start-up decision: [`select_joint`], then the drive and compensator
@@ -161,6 +165,7 @@ pub fn plan_startup<const J: usize>(
                 joint: Ok(j),
                 drive: p.map(|p| p.drive_config(pwm_hz)),
                 compensator: p.map(|p| p.compensator_config(rate_hz, j.slot)),
+                adaptation: p.map_or(AdaptationConfig::OFF, |p| p.adaptation),
             }
         }
         Err(fault) => {
@@ -172,6 +177,7 @@ pub fn plan_startup<const J: usize>(
                 joint: Err(fault),
                 drive: shared,
                 compensator: None,
+                adaptation: AdaptationConfig::OFF,
             }
         }
     }
@@ -286,6 +292,7 @@ mod tests {
         let plan = plan_startup(&[0xFF; 16], &WRIST, &PROFILES, 20_000.0, 100);
         assert_eq!(plan.joint, Err(JointConfigFault::Erased));
         assert_eq!(plan.compensator, None);
+        assert_eq!(plan.adaptation, AdaptationConfig::OFF);
         assert_eq!(plan.drive, Some(JointProfile::BOARD.drive_config(20_000.0)));
         // Joints with different drives: no drive the board could be sure of.
         let mut mixed = PROFILES;
@@ -295,8 +302,10 @@ mod tests {
         assert_eq!(plan.drive, None);
         assert_eq!(plan.compensator, None);
         // Configured: that joint's own drive.
+        mixed[1].adaptation.time_constant_s = 5.0;
         let plan = plan_startup(&block(5), &WRIST, &mixed, 20_000.0, 100);
         assert_eq!(plan.drive.map(|d| d.gear_ratio), Some(160.0));
         assert_eq!(plan.compensator.map(|c| c.own_joint), Some(1));
+        assert_eq!(plan.adaptation, mixed[1].adaptation);
     }
 }

@@ -34,11 +34,12 @@
 //! const _: () = assert!(firmware::nn::format::FeaturePreset::Paper.fits(3, 8, 3));
 //! ```
 
-/// Layout and numerics version of generated model files this firmware reads (6: each
-/// compensated joint's drive profile, `JOINT_PROFILES`; 5: the input layer's
+/// Layout and numerics version of generated model files this firmware reads (7: each
+/// profile's friction adaptation; 6: each compensated joint's drive profile,
+/// `JOINT_PROFILES`; 5: the input layer's
 /// activation, `INPUT_ACTIVATION`, tanh or linear; the `drive` preset's presliding
 /// inputs and load-dependent friction features).
-pub const SCHEMA_VERSION: u32 = 6;
+pub const SCHEMA_VERSION: u32 = 7;
 
 /// Index in a compiled-in dynamics model of each compensated joint: the robot joint
 /// indices when the dynamics cover the whole arm, else (the other joints locked away at

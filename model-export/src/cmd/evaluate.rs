@@ -1,10 +1,11 @@
 //! `model-export evaluate`: stream the firmware step over whole logs, against the baselines.
 use super::train::FeatureArgs;
-use anyhow::{Context, Result};
+use anyhow::{Context, Result, bail};
 use clap::Args;
 use compnet::data::{Sequence, Table};
-use compnet::report::{BaselineRef, EvaluatedRun, EvaluationReport, PaperRow};
-use compnet::{eval, io, plot};
+use compnet::report::{AdaptationRef, BaselineRef, EvaluatedRun, EvaluationReport, PaperRow};
+use compnet::{adaptation, eval, io, plot};
+use firmware::adaptation::AdaptationConfig;
 use std::path::{Path, PathBuf};
 
 /// `evaluate` options.
@@ -31,6 +32,20 @@ pub struct EvaluateArgs {
     /// `baseline_rms_nm`).
     #[arg(long, value_delimiter = ',')]
     pub baseline_data: Vec<PathBuf>,
+    /// Also run the drive's online friction adaptation after the model alone, the
+    /// baseline and the network, with this forgetting time constant [s], at each log's
+    /// tick rate (`adapted` columns and report fields).
+    #[arg(long)]
+    pub adapt_time_constant_s: Option<f32>,
+    /// Largest |correction| of the adaptation [N·m].
+    #[arg(long, default_value_t = 10.0)]
+    pub adapt_max_nm: f32,
+    /// Score every figure against the measured torque zero-phase low-passed at this
+    /// cut-off [Hz] (4th-order Butterworth), so that sensor noise above it, which no
+    /// feedforward can cancel, does not count; the network and the adaptation still see
+    /// the torque as logged.
+    #[arg(long)]
+    pub score_cutoff_hz: Option<f64>,
 }
 
 /// Runs `evaluate`.
@@ -58,16 +73,54 @@ pub fn run(a: EvaluateArgs) -> Result<()> {
         .iter()
         .map(|p| Table::read(p))
         .collect::<Result<_>>()?;
-    let seqs: Vec<Sequence> = tables
+    // The torque the figures are scored against: as logged, or low-passed.
+    let scored_tables: Vec<Table> = match a.score_cutoff_hz {
+        Some(fc) => tables
+            .iter()
+            .map(|t| adaptation::low_passed(t, fc))
+            .collect::<Result<_>>()?,
+        None => tables.clone(),
+    };
+    let mut seqs: Vec<Sequence> = tables
         .iter()
         .map(|t| spec.sequence(t))
         .collect::<Result<_>>()?;
+    if a.score_cutoff_hz.is_some() {
+        for (s, scored) in seqs.iter_mut().zip(&scored_tables) {
+            s.targets = spec.sequence(scored)?.targets;
+        }
+    }
+    let adaptation = a.adapt_time_constant_s.map(|t| AdaptationConfig {
+        time_constant_s: t,
+        max_correction_nm: a.adapt_max_nm,
+    });
+    if let Some(cfg) = adaptation
+        && cfg.forgetting(1.0e3).is_none()
+    {
+        bail!(
+            "--adapt-time-constant-s {} / --adapt-max-nm {}: both must be finite and positive",
+            cfg.time_constant_s,
+            cfg.max_correction_nm
+        );
+    }
     let mut reports = Vec::new();
     let mut figures = Vec::new();
-    for (i, ((p, s), table)) in a.data.iter().zip(seqs).zip(&tables).enumerate() {
+    for (i, ((p, s), (table, scored))) in a
+        .data
+        .iter()
+        .zip(seqs)
+        .zip(tables.iter().zip(&scored_tables))
+        .enumerate()
+    {
         let rows = eval::evaluate(&model, &s)?;
         let base_rms = match &baseline {
-            Some(b) => eval::baseline_rms(&spec, table, s.len(), b)?,
+            Some(b) => eval::baseline_rms(&spec, scored, s.len(), b)?,
+            None => vec![None; rows.len()],
+        };
+        let adapted = match adaptation {
+            Some(cfg) => {
+                eval::adapted_rms(&model, &spec, (table, scored), &s, baseline.as_ref(), cfg)?
+            }
             None => vec![None; rows.len()],
         };
         if let (0, Some(dir)) = (i, &a.figures) {
@@ -78,23 +131,29 @@ pub fn run(a: EvaluateArgs) -> Result<()> {
         let rows: Vec<eval::ReportRow> = rows
             .into_iter()
             .zip(base_rms)
-            .map(|(eval, baseline_rms_nm)| eval::ReportRow {
+            .zip(adapted)
+            .map(|((eval, baseline_rms_nm), adapted)| eval::ReportRow {
                 eval,
                 samples: s.len(),
                 baseline_rms_nm,
+                adapted,
             })
             .collect();
         artifacts::ensure_finite(
             &format!("{}: evaluation", p.display()),
-            rows.iter()
-                .flat_map(|r| r.eval.figures().chain(r.baseline_rms_nm)),
+            rows.iter().flat_map(|r| {
+                r.eval
+                    .figures()
+                    .chain(r.baseline_rms_nm)
+                    .chain(r.adapted.iter().flat_map(|a| a.figures()))
+            }),
         )?;
         let plain: Vec<eval::TargetEval> = rows.iter().map(|r| r.eval.clone()).collect();
         println!(
             "{} ({} steps, streamed):\n{}",
             p.display(),
             s.len(),
-            if baseline.is_some() {
+            if baseline.is_some() || adaptation.is_some() {
                 eval::markdown_with_baseline(&rows)
             } else {
                 eval::markdown(&plain)
@@ -139,6 +198,11 @@ pub fn run(a: EvaluateArgs) -> Result<()> {
                         .collect(),
                     fit: b.clone(),
                 }),
+                adaptation: adaptation.map(|c| AdaptationRef {
+                    time_constant_s: c.time_constant_s,
+                    max_correction_nm: c.max_correction_nm,
+                }),
+                score_cutoff_hz: a.score_cutoff_hz,
             })?,
         )),
         None => None,
