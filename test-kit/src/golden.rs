@@ -7,6 +7,7 @@
 
 pub mod network;
 
+use firmware::adaptation;
 use firmware::dynamics::{JointModel, RigidBodyModel};
 use firmware::features;
 use firmware::math;
@@ -239,14 +240,26 @@ pub fn dynamics_output(
 pub const FEATURE_CASES: usize = 500;
 
 /// Values per case of the `features` suite: the friction features, the linear
-/// correction and the presliding states after a walk of angles.
-pub const FEATURE_VALUES: usize = features::FRICTION_FEATURES + 1 + features::PRESLIDING_ELEMENTS;
+/// correction, the presliding states after a walk of angles, and the friction
+/// adaptation's last correction and levels after a walk of ticks.
+pub const FEATURE_VALUES: usize = features::FRICTION_FEATURES
+    + 1
+    + features::PRESLIDING_ELEMENTS
+    + 1
+    + adaptation::ADAPTED_LEVELS;
+
+/// Ticks of the friction adaptation's walk in each `features` case.
+pub const ADAPTATION_TICKS: u32 = 64;
 
 /// The `features` suite's case: `drive_inputs` of q in [-2π, 2π), qd in [-2, 2) rad/s
 /// (every fourth case inside the rest band), qdd in [-10, 10), model torque in
 /// [-100, 100) N*m, rest direction -1, 0 or +1, presliding states in [-1, 1); the
 /// friction features, then the linear correction with fixed coefficients, then the
-/// presliding states after eight steps of up to +-20 mrad from q.
+/// presliding states after eight steps of up to +-20 mrad from q; then the friction
+/// adaptation (time constant 20-120 ms at 1 kHz, +-5 N*m) after [`ADAPTATION_TICKS`]
+/// ticks of velocities in the case's band, predictions in [-50, 50) N*m and measured
+/// torques up to 10 N*m off them (every seventh one NaN): its last correction, then its
+/// levels.
 pub fn feature_output(case: usize) -> [f32; FEATURE_VALUES] {
     let seed = 0x0FEA_0000u32 ^ (case as u32).wrapping_mul(5);
     let r = |k: u32| 2.0 * unit(hash(seed + k)) - 1.0;
@@ -278,7 +291,28 @@ pub fn feature_output(case: usize) -> [f32; FEATURE_VALUES] {
         q += 0.02 * r(60 + k);
         state = presliding.update(q);
     }
-    out[features::FRICTION_FEATURES + 1..].copy_from_slice(&state);
+    let p = features::FRICTION_FEATURES + 1;
+    out[p..p + features::PRESLIDING_ELEMENTS].copy_from_slice(&state);
+    let config = adaptation::AdaptationConfig {
+        time_constant_s: 0.07 + 0.05 * r(70),
+        max_correction_nm: 5.0,
+    };
+    let mut a = adaptation::FrictionAdaptation::new(config, 1000.0);
+    let mut rest = features::RestDirection::new();
+    let (mut correction, mut measured) = (0.0, f32::NAN);
+    for k in 0..ADAPTATION_TICKS {
+        let qd = band * r(100 + 3 * k);
+        let base = 50.0 * r(101 + 3 * k);
+        correction = a.step(adaptation::regressors(qd, rest.update(qd)), base, measured);
+        measured = if k % 7 == 6 {
+            f32::NAN
+        } else {
+            base + 10.0 * r(102 + 3 * k)
+        };
+    }
+    let p = p + features::PRESLIDING_ELEMENTS;
+    out[p] = correction;
+    out[p + 1..].copy_from_slice(&a.levels_nm());
     out
 }
 
