@@ -373,6 +373,31 @@ fn feedforward_model(path: &Path) {
     io::write_model(&m, path).unwrap();
 }
 
+/// Two training datasets, a feedforward network and a test dataset of `test_rows` rows
+/// in `dir`.
+fn evaluation_files(dir: &Path, test_rows: usize) -> (Vec<PathBuf>, PathBuf, PathBuf) {
+    let paths = datasets(dir, 0.05);
+    let model = dir.join("ff.safetensors");
+    feedforward_model(&model);
+    let test = dir.join("test.csv");
+    write_dataset(&test, test_rows, 99, true, 0.05);
+    (paths, model, test)
+}
+
+/// Writes `from` to `to` with column `column`'s field of each line (1-based, the
+/// header is line 0) replaced by `edit(line, field)`.
+fn edit_column(from: &Path, to: &Path, column: &str, edit: impl Fn(usize, &str) -> String) {
+    let text = std::fs::read_to_string(from).unwrap();
+    let mut lines: Vec<String> = text.lines().map(String::from).collect();
+    let k = lines[0].split(',').position(|n| n == column).unwrap();
+    for (row, l) in lines.iter_mut().enumerate().skip(1) {
+        let mut f: Vec<String> = l.split(',').map(String::from).collect();
+        f[k] = edit(row, &f[k]);
+        *l = f.join(",");
+    }
+    std::fs::write(to, lines.join("\n") + "\n").unwrap();
+}
+
 fn evaluate(args: &[OsString]) -> std::process::Output {
     Command::new(env!("CARGO_BIN_EXE_model-export"))
         .arg("evaluate")
@@ -384,11 +409,7 @@ fn evaluate(args: &[OsString]) -> std::process::Output {
 #[test]
 fn evaluate_reports_the_baseline_and_refuses_bad_baseline_data() {
     let dir = tempfile::tempdir().unwrap();
-    let paths = datasets(dir.path(), 0.05);
-    let model = dir.path().join("ff.safetensors");
-    feedforward_model(&model);
-    let test = dir.path().join("test.csv");
-    write_dataset(&test, 400, 99, true, 0.05);
+    let (paths, model, test) = evaluation_files(dir.path(), 400);
     let report = dir.path().join("eval.json");
     let base = format!("{},{}", paths[0].display(), paths[1].display());
     let common = |report: &Path| -> Vec<OsString> {
@@ -459,19 +480,9 @@ fn evaluate_reports_the_baseline_and_refuses_bad_baseline_data() {
     std::fs::write(&bad, cut).unwrap();
     // A non-finite value in the other.
     let nan = dir.path().join("nan_base.csv");
-    let mut lines: Vec<String> = std::fs::read_to_string(&paths[1])
-        .unwrap()
-        .lines()
-        .map(String::from)
-        .collect();
-    let k = lines[0]
-        .split(',')
-        .position(|n| n == "tau_meas_j1")
-        .unwrap();
-    let mut f: Vec<String> = lines[5].split(',').map(String::from).collect();
-    f[k] = "NaN".into();
-    lines[5] = f.join(",");
-    std::fs::write(&nan, lines.join("\n") + "\n").unwrap();
+    edit_column(&paths[1], &nan, "tau_meas_j1", |row, v| {
+        if row == 5 { "NaN".into() } else { v.into() }
+    });
     for (file, column, other) in [(&bad, "qd_j3", &paths[1]), (&nan, "tau_meas_j1", &paths[0])] {
         let rep = dir.path().join("refused.json");
         let mut args = common(&rep);
@@ -494,28 +505,12 @@ fn evaluate_reports_the_baseline_and_refuses_bad_baseline_data() {
 #[test]
 fn evaluate_runs_the_drive_adaptation_and_scores_against_the_low_passed_torque() {
     let dir = tempfile::tempdir().unwrap();
-    let paths = datasets(dir.path(), 0.05);
-    let model = dir.path().join("ff.safetensors");
-    feedforward_model(&model);
     // A test run whose joint 1 carries a 2 N·m offset no training run has (friction
     // drift): the baseline misses it, the adaptation learns it from the measured torque.
-    let test = dir.path().join("test.csv");
-    write_dataset(&test, 2000, 99, true, 0.05);
-    let mut lines: Vec<String> = std::fs::read_to_string(&test)
-        .unwrap()
-        .lines()
-        .map(String::from)
-        .collect();
-    let k = lines[0]
-        .split(',')
-        .position(|n| n == "tau_meas_j1")
-        .unwrap();
-    for l in lines.iter_mut().skip(1) {
-        let mut f: Vec<String> = l.split(',').map(String::from).collect();
-        f[k] = (f[k].parse::<f32>().unwrap() + 2.0).to_string();
-        *l = f.join(",");
-    }
-    std::fs::write(&test, lines.join("\n") + "\n").unwrap();
+    let (paths, model, test) = evaluation_files(dir.path(), 2000);
+    edit_column(&test, &test, "tau_meas_j1", |_, v| {
+        (v.parse::<f32>().unwrap() + 2.0).to_string()
+    });
     let base = format!("{},{}", paths[0].display(), paths[1].display());
     let run = |report: &Path, extra: &[&str]| {
         let mut args: Vec<OsString> = vec![

@@ -639,6 +639,11 @@ mod tests {
 
     /// Sends fresh states of joints 0 and 2 and ticks once.
     fn tick(c: &mut Comp, k: u32, own_q: f32) -> CompensatorOutput {
+        tick_own(c, k, &state(own_q))
+    }
+
+    /// [`tick`] with the whole own state.
+    fn tick_own(c: &mut Comp, k: u32, own: &JointState) -> CompensatorOutput {
         for j in [0u8, 2] {
             c.receive(&JointStateMessage {
                 joint: j,
@@ -648,7 +653,7 @@ mod tests {
                 state: state(0.5),
             });
         }
-        c.tick(&state(own_q), k * 1000)
+        c.tick(own, k * 1000)
     }
 
     /// Ticks until the output settles at `want` from `source`; returns the tick reached.
@@ -679,16 +684,7 @@ mod tests {
         };
         let mut last = CompensatorOutput::default();
         for k in 1..2000 {
-            for j in [0u8, 2] {
-                c.receive(&JointStateMessage {
-                    joint: j,
-                    session: 0,
-                    sequence: k as u16,
-                    timestamp_us: k * 1000,
-                    state: state(0.5),
-                });
-            }
-            last = c.tick(&own, k * 1000);
+            last = tick_own(&mut c, k, &own);
         }
         // Learned up to its limit of 1 N*m, and no further.
         assert!((last.torque_nm - 8.0).abs() < 1e-3, "{last:?}");
