@@ -123,11 +123,13 @@ for spec in "${all_nets[@]}"; do
   echo "== $name: preset $preset on $dir/"
   # The drive-side compensator is what each joint's drive runs: one small network per
   # joint on that joint's own features (10 -> 16 -> LSTM 16 -> 1, the per-joint budget),
-  # its do-no-harm gain judged on every held-out run (4 run-wise folds of the training
-  # runs and the validation run).
+  # learning what the linear stage and the drive's online adaptation leave, its
+  # do-no-harm gain judged on every held-out run (4 run-wise folds of the training runs
+  # and the validation run).
   if [ "$preset" = drive ]; then
     groups=(${joints//,/ })
-    size=(--embed 16 --hidden 16 --patience 15 --gain-folds 4)
+    size=(--embed 16 --hidden 16 --patience 15 --gain-folds 4
+      --adapt-time-constant-s "$adapt_time_constant_s" --adapt-max-nm "$adapt_max_nm")
   else
     groups=("$joints")
     size=()

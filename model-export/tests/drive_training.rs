@@ -131,3 +131,75 @@ fn the_linear_stage_is_the_baseline_and_a_network_that_cannot_help_fades() {
         "gain {gain} on a residual of pure noise"
     );
 }
+
+#[test]
+fn the_network_can_learn_what_the_drive_adaptation_leaves() {
+    let dir = tempfile::tempdir().unwrap();
+    let runs: Vec<PathBuf> = (0..3)
+        .map(|k| dir.path().join(format!("run{k}.csv")))
+        .collect();
+    for (k, r) in runs.iter().enumerate() {
+        drive_run(r, 0.5 + 0.2 * k as f64, 1.0 + 0.5 * k as f64, k as u64 + 1);
+    }
+    let (net, report) = (
+        dir.path().join("drive.safetensors"),
+        dir.path().join("train.json"),
+    );
+    let args = |preset: &'static str, tau: &'static str| -> Vec<String> {
+        [
+            "train",
+            "--data",
+            &format!("{},{}", path(&runs[0]), path(&runs[1])),
+            "--validation-data",
+            &path(&runs[2]),
+            "--preset",
+            preset,
+            "--joints",
+            "1",
+            "--epochs",
+            "2",
+            "--window",
+            "50",
+            "--burn-in",
+            "10",
+            "--embed",
+            "4",
+            "--hidden",
+            "4",
+            "--adapt-time-constant-s",
+            tau,
+            "--quiet",
+            "--out",
+            &path(&net),
+            "--loss-plot",
+            &path(&dir.path().join("loss.svg")),
+            "--report",
+            &path(&report),
+        ]
+        .map(String::from)
+        .to_vec()
+    };
+    let run = |a: Vec<String>| cli(&a.iter().map(String::as_str).collect::<Vec<_>>());
+    run(args("drive", "0.5")).expect("trains");
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    assert_eq!(r["adaptation"]["time_constant_s"], 0.5);
+    assert_eq!(r["adaptation"]["max_correction_nm"], 10.0);
+    // Only the `drive` preset runs on the drive's adaptation; a zero time constant is no
+    // adaptation. Both refused, nothing written.
+    std::fs::remove_file(&net).unwrap();
+    for (a, words) in [
+        (
+            args("feedforward", "0.5"),
+            ["only for the `drive` preset", "feedforward"],
+        ),
+        (
+            args("drive", "0"),
+            ["--adapt-time-constant-s 0", "positive"],
+        ),
+    ] {
+        let e = format!("{:#}", run(a).unwrap_err());
+        assert!(words.iter().all(|w| e.contains(w)), "{e}");
+        assert!(!net.exists());
+    }
+}

@@ -8,9 +8,11 @@
 //! Columns read per joint N: `tau_meas_jN` [N·m], `time_s` [s] (the tick rate), and
 //! what [`baseline::features`] reads (`qd_jN`, `rest_dir_jN`, ...).
 use super::baseline;
-use super::data::Table;
+use super::data::{Sequence, Table};
+use super::train;
 use anyhow::{Result, bail};
-use firmware::adaptation::{ADAPTED_FEATURES, AdaptationConfig, FrictionAdaptation};
+use firmware::adaptation::{self, ADAPTED_FEATURES, AdaptationConfig, FrictionAdaptation};
+use firmware::features;
 
 /// The tick rate of a table [Hz]: one over the median step of `time_s`.
 pub fn tick_hz(table: &Table) -> Result<f64> {
@@ -54,6 +56,65 @@ pub fn adapt(
             base + f64::from(a.step(x, base as f32, before))
         })
         .collect())
+}
+
+/// Takes out of the targets of a `drive` sequence (the residuals over the model and
+/// the linear stage, one output per joint, `outputs` joints) what the adaptation
+/// `config` at `tick_hz` would correct there, causally from the start of the sequence:
+/// the network then learns what the drive's adaptation leaves, as it will run after it.
+pub fn subtract_from_drive_targets(
+    seq: &mut Sequence,
+    outputs: usize,
+    config: AdaptationConfig,
+    tick_hz: f32,
+) {
+    for k in 0..outputs {
+        let mut a = FrictionAdaptation::new(config, tick_hz);
+        let mut residual_before = f32::NAN;
+        for (row, t) in seq.inputs.iter().zip(seq.targets.iter_mut()) {
+            let x = features::joint_drive_inputs(row, outputs, k);
+            // In residual terms the prediction is 0 and the measurement the residual.
+            let c = a.step(adaptation::regressors(x[2], x[5]), 0.0, residual_before);
+            residual_before = t[k];
+            t[k] -= c;
+        }
+    }
+}
+
+/// The `drive` preset's linear stage fitted jointly with the adaptation `config`: the
+/// least-squares fit ([`train::fit_linear_stage`]), then once more on the targets less
+/// what the adaptation corrects over the first fit's residual (each sequence at its tick
+/// rate). Friction that drifts from run to run then moves the adapted levels, not the
+/// static coefficients.
+pub fn fit_linear_stage_under_adaptation(
+    runs: &[(&Sequence, f32)],
+    outputs: usize,
+    config: AdaptationConfig,
+) -> Result<Vec<f32>> {
+    let plain: Vec<Sequence> = runs.iter().map(|(s, _)| (*s).clone()).collect();
+    let first = train::fit_linear_stage(&plain, outputs)?;
+    let without_drift: Vec<Sequence> = runs
+        .iter()
+        .map(|&(s, hz)| {
+            let mut residual = s.clone();
+            train::subtract_linear_stage(&first, std::slice::from_mut(&mut residual));
+            let mut left = residual.clone();
+            subtract_from_drive_targets(&mut left, outputs, config, hz);
+            let mut out = s.clone();
+            for ((t, r), l) in out
+                .targets
+                .iter_mut()
+                .zip(&residual.targets)
+                .zip(&left.targets)
+            {
+                for ((t, r), l) in t.iter_mut().zip(r).zip(l) {
+                    *t -= r - l;
+                }
+            }
+            out
+        })
+        .collect();
+    train::fit_linear_stage(&without_drift, outputs)
 }
 
 /// `table` with every measured torque column (`tau_meas_j*`) zero-phase low-passed at
@@ -140,6 +201,36 @@ mod tests {
         let moved = adapt(&later, 1, &model, cfg).unwrap();
         assert_eq!(moved[..=3000], adapted[..=3000]);
         assert_ne!(moved[3001], adapted[3001]);
+    }
+
+    #[test]
+    fn the_drive_targets_lose_what_the_adaptation_corrects() {
+        // One joint's drive rows (qd at index 2, rest direction at 5), a residual of
+        // 1.5 N·m offset: after subtraction the target is what the adaptation leaves.
+        let n = 3000;
+        let mut seq = Sequence {
+            inputs: (0..n)
+                .map(|k| {
+                    let mut row = vec![0.0f32; features::DRIVE_INPUTS_PER_JOINT];
+                    row[2] = 0.3 * (k as f32 * 0.01).sin();
+                    row
+                })
+                .collect(),
+            targets: vec![vec![1.5f32]; n],
+            ..Default::default()
+        };
+        let cfg = AdaptationConfig {
+            time_constant_s: 1.0,
+            max_correction_nm: 5.0,
+        };
+        subtract_from_drive_targets(&mut seq, 1, cfg, 100.0);
+        // Nothing measured before the first row: it keeps its whole target.
+        assert_eq!(seq.targets[0][0], 1.5);
+        assert!(
+            seq.targets[n - 1][0].abs() < 1e-3,
+            "{}",
+            seq.targets[n - 1][0]
+        );
     }
 
     #[test]

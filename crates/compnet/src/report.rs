@@ -31,6 +31,9 @@ pub struct TrainReport {
     pub best_epoch: usize,
     /// Per output, the do-no-harm gain applied on the validation runs (1: none).
     pub output_gains: Vec<f64>,
+    /// The drive adaptation whose leftover the network learned (`drive` preset).
+    #[serde(default)]
+    pub adaptation: Option<AdaptationRef>,
     /// Mean training loss per epoch.
     pub train_loss: Vec<f64>,
     /// Validation loss per epoch.

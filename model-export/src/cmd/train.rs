@@ -1,9 +1,10 @@
 //! `model-export train`: fit the compensation network on logs.
-use anyhow::{Context, Result};
+use anyhow::{Context, Result, bail};
 use clap::Args;
 use compnet::data::{FeatureSpec, Sequence, Table};
-use compnet::report::{TrainReport, TrainTestBlock};
-use compnet::{eval, io, plot, train};
+use compnet::report::{AdaptationRef, TrainReport, TrainTestBlock};
+use compnet::{adaptation, eval, io, plot, train};
+use firmware::adaptation::AdaptationConfig;
 use std::path::{Path, PathBuf};
 
 /// Which columns the network reads and predicts.
@@ -128,15 +129,32 @@ pub struct TrainArgs {
     /// (0: on the validation runs alone; the UR10e study uses 4 for the `drive` preset).
     #[arg(long, default_value_t = 0)]
     pub gain_folds: usize,
+    /// `drive` preset: the network learns what the drive's online friction adaptation
+    /// (this forgetting time constant [s], at each dataset's tick rate, within
+    /// `--adapt-max-nm`) leaves after the linear stage, as the drive runs it.
+    #[arg(long)]
+    pub adapt_time_constant_s: Option<f32>,
+    /// Largest |correction| of that adaptation [N·m].
+    #[arg(long, default_value_t = 10.0)]
+    pub adapt_max_nm: f32,
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
 }
 
-pub(crate) fn load(paths: &[PathBuf], spec: &FeatureSpec) -> Result<Vec<Sequence>> {
+/// Each dataset's sequence, with its tick rate [Hz] (from `time_s`) if `rates`, else 0.
+fn load(paths: &[PathBuf], spec: &FeatureSpec, rates: bool) -> Result<Vec<(Sequence, f32)>> {
     paths
         .iter()
-        .map(|p| spec.sequence(&Table::read(p)?))
+        .map(|p| {
+            let t = Table::read(p)?;
+            let hz = if rates {
+                adaptation::tick_hz(&t)? as f32
+            } else {
+                0.0
+            };
+            Ok((spec.sequence(&t)?, hz))
+        })
         .collect()
 }
 
@@ -163,30 +181,79 @@ pub fn run(a: TrainArgs) -> Result<()> {
     let mut va = Vec::new();
     let mut te = Vec::new();
     let held_out = !a.validation_data.is_empty();
-    for s in load(&a.data, &spec)? {
+    let (mut tr_hz, mut va_hz) = (Vec::new(), Vec::new());
+    let rates = a.adapt_time_constant_s.is_some();
+    for (s, hz) in load(&a.data, &spec, rates)? {
         let val_fraction = if held_out { 0.0 } else { cfg.val_fraction };
         let (x, y, z) = s.split(val_fraction, cfg.test_fraction)?;
         tr.push(x);
+        tr_hz.push(hz);
         if !held_out {
             va.push(y);
+            va_hz.push(hz);
         }
         te.push(z);
     }
-    va.extend(load(&a.validation_data, &spec)?);
+    for (s, hz) in load(&a.validation_data, &spec, rates)? {
+        va.push(s);
+        va_hz.push(hz);
+    }
+    let adapt = match a.adapt_time_constant_s {
+        Some(t) if spec.preset != "drive" => {
+            bail!(
+                "--adapt-time-constant-s {t}: only for the `drive` preset (here `{}`)",
+                spec.preset
+            )
+        }
+        Some(t) => {
+            let c = AdaptationConfig {
+                time_constant_s: t,
+                max_correction_nm: a.adapt_max_nm,
+            };
+            if c.forgetting(1.0e3).is_none() {
+                bail!(
+                    "--adapt-time-constant-s {t} / --adapt-max-nm {}: both must be finite and positive",
+                    a.adapt_max_nm
+                );
+            }
+            Some(c)
+        }
+        None => None,
+    };
     // The `drive` preset's linear stage first (least squares on the training steps); the
     // network then learns what it leaves. The test blocks keep the whole targets. With
     // held-out validation runs, the linear stage is fitted on the whole training runs,
     // the samples the built-in linear baseline is fitted on: it is that baseline, and
-    // the network's part is all that the compensator adds to it.
+    // the network's part is all that the compensator adds to it. With the drive's
+    // adaptation (`--adapt-time-constant-s`) it is fitted jointly with the adaptation,
+    // and the network learns what both leave.
     let linear = if spec.preset == "drive" {
         let fit_on: Vec<Sequence> = if held_out {
             tr.iter().chain(&te).cloned().collect()
         } else {
             tr.clone()
         };
-        let w = train::fit_linear_stage(&fit_on, spec.targets.len())?;
+        let w = match adapt {
+            // With the drive's adaptation: fitted jointly with it (the training blocks
+            // and the test blocks come from the same files, at the same rates).
+            Some(c) => {
+                let rates = if held_out {
+                    [tr_hz.as_slice(), tr_hz.as_slice()].concat()
+                } else {
+                    tr_hz.clone()
+                };
+                let runs: Vec<(&Sequence, f32)> = fit_on.iter().zip(rates).collect();
+                adaptation::fit_linear_stage_under_adaptation(&runs, spec.targets.len(), c)?
+            }
+            None => train::fit_linear_stage(&fit_on, spec.targets.len())?,
+        };
         train::subtract_linear_stage(&w, &mut tr);
         train::subtract_linear_stage(&w, &mut va);
+        if let Some(c) = adapt {
+            for (s, &hz) in tr.iter_mut().zip(&tr_hz).chain(va.iter_mut().zip(&va_hz)) {
+                adaptation::subtract_from_drive_targets(s, spec.targets.len(), c, hz);
+            }
+        }
         w
     } else {
         Vec::new()
@@ -261,6 +328,10 @@ pub fn run(a: TrainArgs) -> Result<()> {
                 epochs: hist.train.len(),
                 best_epoch: hist.best_epoch + 1,
                 output_gains: gains.iter().map(|&g| f64::from(g)).collect(),
+                adaptation: adapt.map(|c| AdaptationRef {
+                    time_constant_s: c.time_constant_s,
+                    max_correction_nm: c.max_correction_nm,
+                }),
                 train_loss: hist.train.clone(),
                 val_loss: hist.val.clone(),
                 test: reports,
