@@ -94,6 +94,17 @@ pub fn config_block(joint_number: u8) -> [u8; JointConfigBlock::LEN] {
     JointConfigBlock { joint_number }.encode()
 }
 
+/// The configuration block naming the 0-based robot joint `joint_index` (naming joint 0,
+/// which no image compensates, when its number does not fit the block's byte).
+pub fn config_block_of_index(joint_index: usize) -> [u8; JointConfigBlock::LEN] {
+    config_block(
+        joint_index
+            .checked_add(1)
+            .and_then(|n| u8::try_from(n).ok())
+            .unwrap_or(0),
+    )
+}
+
 /// The joint-side mechanics the simulated motors drive: accelerations from the
 /// motors' joint-side torques.
 pub trait Mechanism<const J: usize> {

@@ -149,7 +149,7 @@ impl SingleJointSetup {
         Self {
             joint_indices: [joint],
             profiles: [compiled::JOINT_PROFILES[0]],
-            config_block: joint::config_block(joint as u8 + 1),
+            config_block: joint::config_block_of_index(joint),
             hardware,
             load,
             compensator_hz,

@@ -4,7 +4,7 @@
 //! one compensator tick of bus latency.
 
 use super::joint::{
-    JointRun, Mechanism, SimulatedHardware, SimulatedJoint, config_block, run_joints,
+    JointRun, Mechanism, SimulatedHardware, SimulatedJoint, config_block_of_index, run_joints,
 };
 use super::{FeedforwardMode, Trajectory};
 use crate::plant::JointPlantConfig;
@@ -190,7 +190,7 @@ impl MultiJointSetup<3> {
         Ok(Self {
             joint_indices,
             profiles,
-            config_blocks: joint_indices.map(|j| config_block(j as u8 + 1)),
+            config_blocks: joint_indices.map(config_block_of_index),
             hardware,
             mechanics,
             compensator_hz,

@@ -17,7 +17,7 @@
 //! arranged/quantised at run time by `fw_export`).
 
 use super::joint::{
-    BOARD_PWM_HZ, Mechanism, SimulatedHardware, SimulatedJoint, config_block, run_joints,
+    BOARD_PWM_HZ, Mechanism, SimulatedHardware, SimulatedJoint, config_block_of_index, run_joints,
 };
 use super::plant::JointPlantConfig;
 use anyhow::{Context, bail, ensure};
@@ -273,7 +273,7 @@ impl WristSetup {
             duration_s,
             joint_indices: WRIST_JOINTS,
             profiles,
-            config_blocks: WRIST_JOINTS.map(|j| config_block(j as u8 + 1)),
+            config_blocks: WRIST_JOINTS.map(config_block_of_index),
             hardware,
             compensator_hz,
         })
@@ -646,6 +646,7 @@ pub fn markdown_table(reports: &[ModeReport]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::joint::config_block;
     use firmware::control::{FaultFlags, JointConfigFault, SubsetModel};
     use firmware::model::default as compiled;
 
