@@ -187,7 +187,7 @@ fn run_sil(seconds: f64, seed: u64) -> anyhow::Result<()> {
         "--seconds must be in (0, 600]"
     );
     println!(
-        "single joint (wrist-sized, gear 100, 20 kHz PWM, outer loops 5 kHz), {seconds} s, seed {seed}"
+        "single joint (the compiled-in model's joint 4: its drive profile, configured by its block; 20 kHz PWM), {seconds} s, seed {seed}"
     );
     println!(
         "{:<28} {:>9} {:>16} {:>16} {:>12} {:>16}",
@@ -204,7 +204,7 @@ fn run_sil(seconds: f64, seed: u64) -> anyhow::Result<()> {
             FeedforwardMode::InverseDynamics(1.0),
         ),
     ];
-    for hz in [100.0, 1000.0] {
+    for hz in [100, 1000] {
         for (name, mode) in modes {
             let mut setup = SingleJointSetup::wrist_joint(hz, seed);
             setup.duration_s = seconds;
@@ -229,7 +229,7 @@ fn run_sil(seconds: f64, seed: u64) -> anyhow::Result<()> {
         "feedforward", "joint", "RMS error mrad", "RMS iq A"
     );
     use sil::multi::{MultiFeedforward, MultiJointSetup, run_multi_joint};
-    let mut setup = MultiJointSetup::wrist(1000.0, seed);
+    let mut setup = MultiJointSetup::wrist(1000, seed)?;
     setup.duration_s = seconds;
     for (name, mode) in [
         ("none", MultiFeedforward::Mode(FeedforwardMode::None)),

@@ -13,7 +13,7 @@ fn setup(seconds: f64) -> WristSetup {
     let robot = robot::RobotSource::BuiltIn.load().unwrap();
     let traj: CommandedTrajectory =
         plant_sim::trajectory::trajectory_or_seeded(None, 1, 2, 3).unwrap();
-    let mut s = WristSetup::new(robot, PlantParameters::default_robot(), traj, 100.0, 3).unwrap();
+    let mut s = WristSetup::new(robot, PlantParameters::default_robot(), traj, 100, 3).unwrap();
     s.duration_s = seconds;
     s
 }
@@ -89,7 +89,9 @@ fn wrist_tracks_and_every_compensator_hears_the_others() {
 #[test]
 fn lstm_stage_runs_in_both_precisions_through_the_firmware_predictor() {
     let mut s = setup(0.6);
-    s.compensator.max_lstm_correction_nm = 200.0;
+    for p in &mut s.profiles {
+        p.max_lstm_correction_nm = 200.0;
+    }
     let model = nominal_model();
     let lstm = zero_output_lstm();
     let none = run_wrist(&s, WristFeedforward::None, None, None).unwrap();

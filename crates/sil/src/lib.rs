@@ -1,26 +1,33 @@
 //! Software in the loop: the firmware's own control functions (`firmware::control`)
 //! drive a simulated joint plant through PWM duties, on the host.
 //!
-//! [`plant`] holds the motor, gear, sensors and the [`plant::JointLoad`] trait through
-//! which a load plugs in (here a single joint with inertia, friction and gravity).
-//! [`multi`] couples several joints through a test mechanism; [`wrist`] runs the
-//! paper's wrist on the plant simulator's true dynamics, friction and ripple with
-//! the identified model and the LSTM as feedforward (`model-export sil --model`). [`run_single_joint`]
-//! closes the loop: sensors -> `JointDrive::pwm_tick` -> duties -> plant, with the
-//! `Compensator` feeding the torque feedforward at its own rate.
+//! Every simulated joint is a board as the product runs it: its configuration block
+//! goes through the firmware's start-up (`plan_startup`) against the image's joint
+//! profiles, which configure its drive and compensator and describe its motor and
+//! gear ([`joint`]). [`joint::run_joints`] is the one loop of every setup: per PWM
+//! period each joint's [`joint::SimulatedJoint::step_joint`] (sensors ->
+//! `JointDrive::pwm_tick` -> duties, the `Compensator` feeding the torque feedforward
+//! at its own rate), then the motors and the mechanics behind [`joint::Mechanism`].
+//!
+//! [`plant`] holds the motor and sensor models and a single joint's load;
+//! [`run_single_joint`] runs one joint on it. [`multi`] couples several joints through
+//! a test mechanism; [`wrist`] runs the paper's wrist on the plant simulator's true
+//! dynamics, friction and ripple with the identified model and the LSTM as
+//! feedforward (`model-export sil --model`).
 #![deny(unsafe_code)]
 #![warn(missing_docs)]
 
+pub mod joint;
 pub mod multi;
 pub mod plant;
 pub mod wrist;
 
 use firmware::control::{
-    BusClock, CascadeConfig, Compensator, CompensatorConfig, CurrentLoopConfig, DriveConfig,
-    FaultFlags, JointDrive, JointReference, JointState, JointStateMessage, NoPredictor,
-    PredictorInput, SensorSample, StateLimits, TorquePredictor,
+    FaultFlags, JointConfigBlock, JointProfile, JointState, JointStateMessage, NoPredictor,
+    PredictorInput, StartupPlan, TorquePredictor, plan_startup,
 };
-use plant::{JointPlant, JointPlantConfig, SingleJointLoad};
+use joint::{BOARD_PWM_HZ, Mechanism, SimulatedHardware, SimulatedJoint};
+use plant::{JointPlantConfig, SingleJointLoad};
 use std::f64::consts::TAU;
 
 /// A smooth periodic joint trajectory that starts at rest:
@@ -85,17 +92,23 @@ impl TorquePredictor<1> for InverseDynamicsPredictor {
     fn reset(&mut self) {}
 }
 
-/// Everything a single-joint run needs.
+/// Everything a single-joint run needs: the image's joint (its index and profile), the
+/// board's configuration block, the simulated hardware and the load.
 #[derive(Clone, Debug)]
 pub struct SingleJointSetup {
-    /// Plant (motor, gear, sensors).
-    pub plant: JointPlantConfig,
+    /// The compensated joint of the image (0-based robot joint, `JOINT_INDICES`).
+    pub joint_indices: [usize; 1],
+    /// Its drive profile (`JOINT_PROFILES`): the drive, the compensator and the
+    /// simulated motor and gear.
+    pub profiles: [JointProfile; 1],
+    /// The board's configuration block (encoded).
+    pub config_block: [u8; JointConfigBlock::LEN],
+    /// What only the simulation has: rotor inertia, bus voltage, PWM, sensors, seed.
+    pub hardware: SimulatedHardware,
     /// Load.
     pub load: SingleJointLoad,
-    /// Firmware drive configuration.
-    pub drive: DriveConfig,
-    /// Firmware compensator configuration.
-    pub compensator: CompensatorConfig,
+    /// Compensator rate, Hz.
+    pub compensator_hz: u32,
     /// Reference trajectory.
     pub trajectory: Trajectory,
     /// Simulated time, s.
@@ -103,22 +116,19 @@ pub struct SingleJointSetup {
 }
 
 impl SingleJointSetup {
-    /// A wrist-sized joint: 7 pole pairs, 0.105 N*m/A motor, gear 100, 48 V bus,
-    /// 20 kHz PWM, outer loops at 5 kHz, compensator at `compensator_hz`.
-    pub fn wrist_joint(compensator_hz: f64, seed: u64) -> Self {
-        let plant = JointPlantConfig {
-            pole_pairs: 7,
-            phase_resistance_ohm: 0.3,
-            phase_inductance_h: 3e-4,
-            flux_linkage_wb: 0.01,
+    /// The first compensated joint of the compiled-in model (the wrist's joint 4: the
+    /// board's wrist motor, 100:1 gear, cascade at 5 kHz), configured as that joint,
+    /// on the board's 20 kHz PWM and a 48 V bus, its compensator at `compensator_hz`,
+    /// driving 0.5 kg*m^2 with viscous and Coulomb friction and 20 N*m of gravity.
+    pub fn wrist_joint(compensator_hz: u32, seed: u64) -> Self {
+        use firmware::model::default as compiled;
+        let joint = compiled::JOINT_INDICES[0];
+        let hardware = SimulatedHardware {
             rotor_inertia_kg_m2: 3e-5,
-            gear_ratio: 100.0,
-            gear_efficiency: 1.0,
             bus_v: 48.0,
-            pwm_hz: 20_000.0,
+            pwm_hz: BOARD_PWM_HZ,
             substeps: 10,
             encoder_bits: 14,
-            encoder_offset_rad: 0.05,
             current_noise_a: 0.05,
             current_lsb_a: 0.01,
             bus_noise_v: 0.1,
@@ -131,62 +141,55 @@ impl SingleJointSetup {
             coulomb_smoothing_rad_s: 0.02,
             gravity_nm: 20.0,
         };
-        let drive = DriveConfig {
-            current: CurrentLoopConfig::tuned(plant.motor(), plant.pwm_hz as f32),
-            cascade: CascadeConfig {
-                rate_hz: 5000.0,
-                position_kp: 40.0,
-                position_ki: 0.0,
-                position_kd: 0.0,
-                max_velocity_rad_s: 4.0,
-                velocity_kp: 12.0,
-                velocity_ki: 400.0,
-                velocity_kd: 0.0,
-                max_current_a: 15.0,
-                velocity_filter_alpha: 0.3,
-            },
-            gear_ratio: plant.gear_ratio as f32,
-            encoder_offset_rad: plant.encoder_offset_rad as f32,
-            max_current_a: 15.0,
-            overcurrent_trip_a: 30.0,
-            bus_min_v: 36.0,
-            bus_max_v: 56.0,
-            max_abs_q_ref_rad: 6.3,
-        };
-        let drive_gain = 1.5 * plant.pole_pairs as f64 * plant.flux_linkage_wb * plant.gear_ratio;
-        let compensator = CompensatorConfig {
-            rate_hz: compensator_hz as f32,
-            own_joint: 0,
-            state_limits: StateLimits {
-                max_abs_q_rad: 6.3,
-                max_abs_qd_rad_s: 5.0,
-                max_abs_qdd_rad_s2: 200.0,
-                max_abs_tau_nm: 300.0,
-            },
-            watchdog_ticks: 3,
-            max_message_age_us: 50_000,
-            bus_clock: BusClock::Synchronised,
-            max_torque_nm: 120.0,
-            max_torque_rate_nm_s: 2_000.0,
-            max_lstm_correction_nm: 30.0,
-            warmup_ticks: 10,
-            lstm_retry_ticks: 50,
-            drive_gain_nm_per_a: drive_gain as f32,
-            max_current_a: 12.0,
-        };
         let trajectory = Trajectory {
             offset_rad: 0.2,
             fundamental_hz: 0.4,
             amplitudes_rad: vec![0.5, 0.15, 0.05],
         };
         Self {
-            plant,
+            joint_indices: [joint],
+            profiles: [compiled::JOINT_PROFILES[0]],
+            config_block: joint::config_block_of_index(joint),
+            hardware,
             load,
-            drive,
-            compensator,
+            compensator_hz,
             trajectory,
             duration_s: 5.0,
         }
+    }
+
+    /// The simulated motor, gear and sensors: the joint's profile and the hardware.
+    pub fn plant(&self) -> JointPlantConfig {
+        JointPlantConfig::from_profile(&self.profiles[0], &self.hardware)
+    }
+
+    /// The board's start-up decision on this setup (`firmware::control::plan_startup`).
+    pub fn plan(&self) -> StartupPlan {
+        plan_startup(
+            &self.config_block,
+            &self.joint_indices,
+            &self.profiles,
+            self.hardware.pwm_hz as f32,
+            self.compensator_hz,
+        )
+    }
+}
+
+/// A single joint's load as the mechanism of [`joint::run_joints`].
+struct SingleJointMechanism(SingleJointLoad);
+
+impl Mechanism<1> for SingleJointMechanism {
+    fn accelerations(
+        &mut self,
+        _t_s: f64,
+        q: &[f64; 1],
+        qd: &[f64; 1],
+        tau: &[f64; 1],
+        reflected: &[f64; 1],
+        _dt_s: f64,
+    ) -> anyhow::Result<[f64; 1]> {
+        let inertia = self.0.inertia_kg_m2 + reflected[0];
+        Ok([(tau[0] - self.0.torque_at(q[0], qd[0])) / inertia])
     }
 }
 
@@ -207,86 +210,47 @@ pub struct SilReport {
     pub pwm_ticks: u64,
 }
 
-/// Run the closed loop: the firmware's `JointDrive` and `Compensator` (f32) against
-/// the f64 plant, duties applied one PWM period after the sample they were computed
-/// from (as on the MCU).
+/// Run the closed loop: the board's start-up on the setup's configuration block, then
+/// the firmware's `JointDrive` and `Compensator` (f32) against the f64 plant through
+/// [`joint::run_joints`], duties applied one PWM period after the sample they were
+/// computed from (as on the MCU).
 pub fn run_single_joint(
     setup: &SingleJointSetup,
     mode: FeedforwardMode,
 ) -> anyhow::Result<SilReport> {
-    let mut plant = JointPlant::new(setup.plant, setup.load, setup.trajectory.offset_rad);
-    let mut drive = JointDrive::new(setup.drive);
-    drive.set_position_origin(setup.trajectory.offset_rad as f32);
+    let plant = setup.plant();
     let predictor = InverseDynamicsPredictor {
         load: setup.load,
-        inertia_kg_m2: plant.effective_inertia_kg_m2(),
+        inertia_kg_m2: setup.load.inertia_kg_m2 + plant.reflected_rotor_inertia_kg_m2(),
         scale: match mode {
             FeedforwardMode::None => 0.0,
             FeedforwardMode::InverseDynamics(s) => s,
         },
     };
-    let mut comp: Compensator<1, _, NoPredictor> =
-        Compensator::new(setup.compensator, predictor, NoPredictor)
-            .map_err(|e| anyhow::anyhow!("compensator configuration: {e:?}"))?;
-    let pwm_hz = setup.plant.pwm_hz;
-    let comp_every = (pwm_hz / setup.compensator.rate_hz as f64).round().max(1.0) as u64;
-    let n = (setup.duration_s * pwm_hz).round() as u64;
-    let mut duties = [0.5f64; 3];
-    let (mut se, mut max_e, mut siq, mut sfb) = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
-    let mut faults = FaultFlags::NONE;
-    let mut last_out = firmware::control::DriveOutput::default();
-    let gain = setup.compensator.drive_gain_nm_per_a;
-    let mut ff_a = 0.0f32;
-    for k in 0..n {
-        let t = k as f64 / pwm_hz;
-        let (q, qd, qdd) = setup.trajectory.at(t);
-        let reference = JointReference {
-            q_rad: q as f32,
-            qd_rad_s: qd as f32,
-            qdd_rad_s2: qdd as f32,
-        };
-        drive.set_reference(&reference);
-        if k % comp_every == 0 {
-            // The feedforward is held for one compensator period: predict for the
-            // middle of that period (the reference is known ahead).
-            let (qa, qda, qdda) = setup.trajectory.at(t + 0.5 * comp_every as f64 / pwm_hz);
-            let own = JointState {
-                q_ref_rad: qa as f32,
-                qd_ref_rad_s: qda as f32,
-                qdd_ref_rad_s2: qdda as f32,
-                q_meas_rad: last_out.q_rad,
-                qd_meas_rad_s: last_out.qd_rad_s,
-                tau_meas_nm: last_out.iq_meas_a * gain,
-            };
-            let o = comp.tick(&own, (t * 1e6) as u32);
-            ff_a = o.current_a;
-            drive.set_feedforward_current(ff_a);
-        }
-        let s = plant.sense();
-        let sample = SensorSample {
-            phase_current_a: [s.phase_current_a[0] as f32, s.phase_current_a[1] as f32],
-            motor_angle_rad: s.motor_angle_rad as f32,
-            bus_v: s.bus_v as f32,
-        };
-        last_out = drive.pwm_tick(&sample);
-        faults |= last_out.faults;
-        plant.step_pwm_period(duties);
-        duties = last_out.duties.map(f64::from);
-        let e = setup.trajectory.at(plant.t_s()).0 - plant.q_rad();
-        se += e * e;
-        max_e = max_e.max(e.abs());
-        siq += plant.iq_a().powi(2);
-        sfb += ((last_out.iq_ref_a - ff_a) as f64).powi(2);
-    }
-    faults |= comp.latched_faults();
-    let nf = n.max(1) as f64;
+    let mut joints = [SimulatedJoint::<1, _, NoPredictor>::start(
+        &setup.config_block,
+        &setup.joint_indices,
+        &setup.profiles,
+        setup.compensator_hz,
+        plant,
+        setup.trajectory.offset_rad,
+        |_| Ok((predictor, NoPredictor)),
+    )?];
+    let r = joint::run_joints(
+        &mut joints,
+        &mut SingleJointMechanism(setup.load),
+        |t| [setup.trajectory.at(t)],
+        setup.compensator_hz,
+        setup.duration_s,
+    )?;
+    let r = r[0];
     Ok(SilReport {
-        rms_error_rad: (se / nf).sqrt(),
-        max_error_rad: max_e,
-        rms_iq_a: (siq / nf).sqrt(),
-        rms_feedback_current_a: (sfb / nf).sqrt(),
-        faults,
-        pwm_ticks: n,
+        rms_error_rad: r.rms_error_rad,
+        max_error_rad: r.max_error_rad,
+        rms_iq_a: r.rms_iq_a,
+        rms_feedback_current_a: r.rms_feedback_current_a,
+        faults: r.faults,
+        pwm_ticks: r.pwm_ticks,
     })
 }
 
@@ -300,23 +264,18 @@ pub struct StateBus {
 }
 
 impl StateBus {
-    /// Delivers the frames sent at the previous tick and opens a new tick (its sequence
-    /// number).
-    pub fn deliver<const J: usize, M: TorquePredictor<J>, L: TorquePredictor<J>>(
-        &mut self,
-        comps: &mut [Compensator<J, M, L>],
-    ) -> anyhow::Result<()> {
-        for frame in self.in_flight.drain(..) {
-            let msg = JointStateMessage::decode(&frame)
-                .ok_or_else(|| anyhow::anyhow!("corrupt frame"))?;
-            for (j, c) in comps.iter_mut().enumerate() {
-                if j != msg.joint as usize {
-                    c.receive(&msg);
-                }
-            }
-        }
+    /// The frames sent at the previous tick, decoded (each goes to every board but its
+    /// sender's), and a new tick opened (its sequence number).
+    pub fn deliver(&mut self) -> anyhow::Result<Vec<JointStateMessage>> {
+        let msgs = self
+            .in_flight
+            .drain(..)
+            .map(|frame| {
+                JointStateMessage::decode(&frame).ok_or_else(|| anyhow::anyhow!("corrupt frame"))
+            })
+            .collect::<anyhow::Result<Vec<_>>>()?;
         self.sequence = self.sequence.wrapping_add(1);
-        Ok(())
+        Ok(msgs)
     }
 
     /// Sends joint `joint`'s state of this tick.
@@ -335,13 +294,14 @@ impl StateBus {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::plant::JointPlant;
 
     #[test]
     fn current_loop_step_response_on_the_plant() {
         // Rotor held by a huge inertia; the firmware's FOC current loop alone, one PWM
         // period of delay: a 5 A q step settles in about 1 ms without ringing.
-        let setup = SingleJointSetup::wrist_joint(1000.0, 1);
-        let mut pc = setup.plant;
+        let setup = SingleJointSetup::wrist_joint(1000, 1);
+        let mut pc = setup.plant();
         pc.current_noise_a = 0.0;
         pc.current_lsb_a = 0.0;
         let load = SingleJointLoad {
@@ -349,7 +309,11 @@ mod tests {
             ..setup.load
         };
         let mut plant = JointPlant::new(pc, load, 0.1);
-        let mut cl = firmware::control::CurrentLoop::new(setup.drive.current);
+        let drive = setup
+            .plan()
+            .drive
+            .expect("the board's block configures a drive");
+        let mut cl = firmware::control::CurrentLoop::new(drive.current);
         let mut duties = [0.5; 3];
         let mut peak: f64 = 0.0;
         let mut at_1ms = 0.0;
@@ -379,7 +343,7 @@ mod tests {
 
     #[test]
     fn loop_tracks_and_perfect_feedforward_reduces_the_error() {
-        let setup = SingleJointSetup::wrist_joint(1000.0, 7);
+        let setup = SingleJointSetup::wrist_joint(1000, 7);
         let none = run_single_joint(&setup, FeedforwardMode::None).unwrap();
         let perfect = run_single_joint(&setup, FeedforwardMode::InverseDynamics(1.0)).unwrap();
         println!("no ff: {none:?}\nperfect ff: {perfect:?}");

@@ -1,35 +1,21 @@
-//! Several joints on one mechanism: one motor model per joint (the same electrical
-//! model and sensors as [`super::plant`]) and coupled joint-side mechanics behind
-//! [`JointMechanics`]; the firmware instances exchange their states as
-//! `JointStateMessage` wire frames with one compensator tick of bus latency.
+//! Several joints on one mechanism: one simulated board and motor per joint
+//! ([`super::joint`]) and coupled joint-side mechanics ([`CoupledJoints`]); the
+//! firmware instances exchange their states as `JointStateMessage` wire frames with
+//! one compensator tick of bus latency.
 
-use super::plant::{
-    JointPlantConfig, SensedSample, motor_electrical_step, noise, phase_voltages, q_current_a,
-    sense_joint,
+use super::joint::{
+    JointRun, Mechanism, SimulatedHardware, SimulatedJoint, config_block_of_index, run_joints,
 };
 use super::{FeedforwardMode, Trajectory};
+use crate::plant::JointPlantConfig;
 use firmware::control::{
-    Compensator, CompensatorConfig, DriveConfig, DriveOutput, FaultFlags, FeedforwardSource,
-    JointDrive, JointReference, JointState, NoPredictor, PredictorInput, SensorSample,
-    TorquePredictor,
+    FaultFlags, JointConfigBlock, JointProfile, NoPredictor, PredictorInput, TorquePredictor,
 };
 use nalgebra::{DMatrix, DVector};
-use rand::SeedableRng;
-use rand_chacha::ChaCha8Rng;
-use rand_distr::Normal;
-
-/// Joint-side mechanics of `J` coupled joints: M(q) qdd + h(q, qd) = tau (a test
-/// mechanism; the plant simulator's true wrist runs in [`super::wrist`]); the motors'
-/// rotor inertias are added by the plant.
-pub trait JointMechanics<const J: usize> {
-    /// Mass matrix M(q), kg*m^2 (without the rotors).
-    fn mass_matrix(&mut self, q_rad: &[f64; J]) -> [[f64; J]; J];
-    /// Everything else h(q, qd) (Coriolis, gravity, friction, ripple), N*m, at time `t_s`.
-    fn bias_torques_nm(&mut self, t_s: f64, q_rad: &[f64; J], qd_rad_s: &[f64; J]) -> [f64; J];
-}
 
 /// A test mechanism: constant inertia matrix with coupling, per-joint viscous and
-/// Coulomb friction and gravity (tau_g = g_j sin q_j).
+/// Coulomb friction and gravity (tau_g = g_j sin q_j); the motors' rotors are added
+/// on the diagonal.
 #[derive(Clone, Debug, PartialEq)]
 pub struct CoupledJoints<const J: usize> {
     /// Inertia matrix (symmetric, positive definite), kg*m^2.
@@ -56,12 +42,26 @@ impl<const J: usize> CoupledJoints<J> {
     }
 }
 
-impl<const J: usize> JointMechanics<J> for CoupledJoints<J> {
-    fn mass_matrix(&mut self, _q: &[f64; J]) -> [[f64; J]; J] {
-        self.inertia_kg_m2
-    }
-    fn bias_torques_nm(&mut self, _t: f64, q: &[f64; J], qd: &[f64; J]) -> [f64; J] {
-        self.bias(q, qd)
+impl<const J: usize> Mechanism<J> for CoupledJoints<J> {
+    fn accelerations(
+        &mut self,
+        t_s: f64,
+        q: &[f64; J],
+        qd: &[f64; J],
+        tau: &[f64; J],
+        reflected: &[f64; J],
+        _dt_s: f64,
+    ) -> anyhow::Result<[f64; J]> {
+        let h = self.bias(q, qd);
+        let mm = DMatrix::<f64>::from_fn(J, J, |r, c| {
+            self.inertia_kg_m2[r][c] + if r == c { reflected[r] } else { 0.0 }
+        });
+        let rhs = DVector::<f64>::from_fn(J, |r, _| tau[r] - h[r]);
+        let qdd = mm
+            .lu()
+            .solve(&rhs)
+            .ok_or_else(|| anyhow::anyhow!("singular mass matrix at t = {t_s}"))?;
+        Ok(std::array::from_fn(|j| qdd[j]))
     }
 }
 
@@ -115,32 +115,54 @@ pub enum MultiFeedforward {
     Decoupled,
 }
 
-/// Everything a multi-joint run needs.
+/// Everything a multi-joint run needs: the image's joints and profiles, each board's
+/// configuration block, the simulated hardware, the mechanism and the references.
 #[derive(Clone, Debug)]
 pub struct MultiJointSetup<const J: usize> {
-    /// Per-joint motor, gear and sensors (the seeds should differ).
-    pub plants: [JointPlantConfig; J],
+    /// The compensated joints of the image (0-based robot joints, `JOINT_INDICES`).
+    pub joint_indices: [usize; J],
+    /// Their drive profiles (`JOINT_PROFILES`); simulated joint `k` is robot joint
+    /// `joint_indices[k]`, its motor and gear those of `profiles[k]`.
+    pub profiles: [JointProfile; J],
+    /// Each simulated board's configuration block (encoded).
+    pub config_blocks: [[u8; JointConfigBlock::LEN]; J],
+    /// Per joint: what only the simulation has (the seeds should differ).
+    pub hardware: [SimulatedHardware; J],
     /// The mechanism.
     pub mechanics: CoupledJoints<J>,
-    /// Per-joint firmware drive configuration.
-    pub drives: [DriveConfig; J],
-    /// Compensator configuration (its `own_joint` is set per joint).
-    pub compensator: CompensatorConfig,
+    /// Compensator rate, Hz.
+    pub compensator_hz: u32,
     /// Per-joint reference trajectory.
     pub trajectories: [Trajectory; J],
     /// Simulated time, s.
     pub duration_s: f64,
 }
 
+impl<const J: usize> MultiJointSetup<J> {
+    /// Simulated joint `k`'s motor, gear and sensors.
+    pub fn plant(&self, k: usize) -> JointPlantConfig {
+        JointPlantConfig::from_profile(&self.profiles[k], &self.hardware[k])
+    }
+}
+
 impl MultiJointSetup<3> {
-    /// A wrist of three wrist-sized joints (as `SingleJointSetup::wrist_joint`) with
-    /// inertial coupling between them.
-    pub fn wrist(compensator_hz: f64, seed: u64) -> Self {
+    /// The compiled-in model's three compensated joints (the wrist: the board's wrist
+    /// motor and gear per joint), each board configured as its joint, with inertial
+    /// coupling between them; the hardware as `SingleJointSetup::wrist_joint`'s.
+    pub fn wrist(compensator_hz: u32, seed: u64) -> anyhow::Result<Self> {
+        use firmware::model::default as compiled;
+        let joint_indices: [usize; 3] = compiled::JOINT_INDICES[..].try_into().map_err(|_| {
+            anyhow::anyhow!(
+                "the compiled-in model compensates {} joints; the coupled wrist needs 3",
+                compiled::JOINT_INDICES.len()
+            )
+        })?;
+        let profiles: [JointProfile; 3] = std::array::from_fn(|k| compiled::JOINT_PROFILES[k]);
         let base = super::SingleJointSetup::wrist_joint(compensator_hz, seed);
-        let mut plants = [base.plant; 3];
-        for (j, p) in plants.iter_mut().enumerate() {
-            p.seed = seed.wrapping_mul(31).wrapping_add(j as u64);
-        }
+        let hardware = std::array::from_fn(|k| SimulatedHardware {
+            seed: seed.wrapping_mul(31).wrapping_add(k as u64),
+            ..base.hardware
+        });
         let mechanics = CoupledJoints {
             inertia_kg_m2: [[0.5, 0.3, 0.15], [0.3, 0.4, 0.2], [0.15, 0.2, 0.3]],
             viscous_nm_s_rad: [3.0, 2.5, 2.0],
@@ -165,14 +187,16 @@ impl MultiJointSetup<3> {
                 amplitudes_rad: vec![-0.4, 0.1, 0.08],
             },
         ];
-        Self {
-            plants,
+        Ok(Self {
+            joint_indices,
+            profiles,
+            config_blocks: joint_indices.map(config_block_of_index),
+            hardware,
             mechanics,
-            drives: [base.drive; 3],
-            compensator: base.compensator,
+            compensator_hz,
             trajectories,
             duration_s: base.duration_s,
-        }
+        })
     }
 }
 
@@ -190,181 +214,54 @@ pub struct JointReport {
     pub zero_feedforward_ticks: u64,
 }
 
-struct Motor {
-    i_abc_a: [f64; 3],
-    rng: ChaCha8Rng,
-    current_noise: Normal<f64>,
-    bus_noise: Normal<f64>,
-}
-
-/// Run the wrist: one firmware `JointDrive` + `Compensator<J>` per joint, states
-/// exchanged as wire frames each compensator tick and delivered at the next one.
+/// Run the coupled joints: one simulated board per joint (start-up from its block,
+/// firmware `JointDrive` + `Compensator<J>`), states exchanged as wire frames each
+/// compensator tick and delivered at the next one, through [`run_joints`].
 pub fn run_multi_joint<const J: usize>(
     setup: &MultiJointSetup<J>,
     mode: MultiFeedforward,
 ) -> anyhow::Result<[JointReport; J]> {
-    let pwm_hz = setup.plants[0].pwm_hz;
-    anyhow::ensure!(
-        setup.plants.iter().all(|p| p.pwm_hz == pwm_hz),
-        "all joints need one PWM rate"
-    );
-    let reflected: [f64; J] = std::array::from_fn(|j| {
-        setup.plants[j].rotor_inertia_kg_m2 * setup.plants[j].gear_ratio.powi(2)
-    });
+    let plants: [JointPlantConfig; J] = std::array::from_fn(|k| setup.plant(k));
+    let reflected: [f64; J] = plants.map(|p| p.reflected_rotor_inertia_kg_m2());
     let (scale, decoupled) = match mode {
         MultiFeedforward::Mode(FeedforwardMode::None) => (0.0, false),
         MultiFeedforward::Mode(FeedforwardMode::InverseDynamics(s)) => (s, false),
         MultiFeedforward::Decoupled => (1.0, true),
     };
-    let mut comps = Vec::with_capacity(J);
-    for j in 0..J {
-        let predictor = CoupledInverseDynamics {
-            mechanics: setup.mechanics.clone(),
-            rotor_reflected_kg_m2: reflected,
-            scale,
-            decoupled,
-        };
-        let cfg = CompensatorConfig {
-            own_joint: j,
-            ..setup.compensator
-        };
-        comps.push(
-            Compensator::<J, _, NoPredictor>::new(cfg, predictor, NoPredictor)
-                .map_err(|e| anyhow::anyhow!("compensator of joint {j}: {e:?}"))?,
-        );
+    let mut joints = Vec::with_capacity(J);
+    for (k, plant) in plants.iter().enumerate() {
+        joints.push(SimulatedJoint::<J, _, NoPredictor>::start(
+            &setup.config_blocks[k],
+            &setup.joint_indices,
+            &setup.profiles,
+            setup.compensator_hz,
+            *plant,
+            setup.trajectories[k].offset_rad,
+            |_| {
+                Ok((
+                    CoupledInverseDynamics {
+                        mechanics: setup.mechanics.clone(),
+                        rotor_reflected_kg_m2: reflected,
+                        scale,
+                        decoupled,
+                    },
+                    NoPredictor,
+                ))
+            },
+        )?);
     }
-    let mut drives: Vec<JointDrive> = setup.drives.iter().map(|d| JointDrive::new(*d)).collect();
-    let mut motors: Vec<Motor> = setup
-        .plants
-        .iter()
-        .map(|p| Motor {
-            i_abc_a: [0.0; 3],
-            rng: ChaCha8Rng::seed_from_u64(p.seed),
-            current_noise: noise(p.current_noise_a),
-            bus_noise: noise(p.bus_noise_v),
-        })
-        .collect();
-    let mut q: [f64; J] = std::array::from_fn(|j| setup.trajectories[j].offset_rad);
-    let mut qd = [0.0f64; J];
-    for (d, q0) in drives.iter_mut().zip(q.iter()) {
-        d.set_position_origin(*q0 as f32);
-    }
-    let mut mech = setup.mechanics.clone();
-    let comp_every = (pwm_hz / setup.compensator.rate_hz as f64).round().max(1.0) as u64;
-    let n = (setup.duration_s * pwm_hz).round() as u64;
-    let substeps = setup.plants[0].substeps.max(1);
-    let dt = 1.0 / (pwm_hz * substeps as f64);
-    let mut duties = vec![[0.5f64; 3]; J];
-    let mut last_out = vec![DriveOutput::default(); J];
-    let mut bus = super::StateBus::default();
-    let (mut se, mut siq) = ([0.0f64; J], [0.0f64; J]);
-    let mut faults = [FaultFlags::NONE; J];
-    let mut zero_ticks = [0u64; J];
-    let mut t = 0.0f64;
-    for k in 0..n {
-        let t_tick = k as f64 / pwm_hz;
-        if k % comp_every == 0 {
-            bus.deliver(&mut comps)?;
-            let t_mid = t_tick + 0.5 * comp_every as f64 / pwm_hz;
-            for j in 0..J {
-                let (qa, qda, qdda) = setup.trajectories[j].at(t_mid);
-                let gain = setup.compensator.drive_gain_nm_per_a;
-                let own = JointState {
-                    q_ref_rad: qa as f32,
-                    qd_ref_rad_s: qda as f32,
-                    qdd_ref_rad_s2: qdda as f32,
-                    q_meas_rad: last_out[j].q_rad,
-                    qd_meas_rad_s: last_out[j].qd_rad_s,
-                    tau_meas_nm: last_out[j].iq_meas_a * gain,
-                };
-                let o = comps[j].tick(&own, (t_tick * 1e6) as u32);
-                drives[j].set_feedforward_current(o.current_a);
-                if k > 0 {
-                    faults[j] |= o.faults;
-                }
-                zero_ticks[j] += u64::from(o.source == FeedforwardSource::Zero);
-                bus.send(j, (t_tick * 1e6) as u32, own);
-            }
-        }
-        for j in 0..J {
-            let c = &setup.plants[j];
-            let (qr, qdr, qddr) = setup.trajectories[j].at(t_tick);
-            drives[j].set_reference(&JointReference {
-                q_rad: qr as f32,
-                qd_rad_s: qdr as f32,
-                qdd_rad_s2: qddr as f32,
-            });
-            let m = &mut motors[j];
-            let s: SensedSample = sense_joint(
-                c,
-                m.i_abc_a,
-                q[j] * c.gear_ratio,
-                &mut m.rng,
-                &m.current_noise,
-                &m.bus_noise,
-            );
-            last_out[j] = drives[j].pwm_tick(&SensorSample {
-                phase_current_a: [s.phase_current_a[0] as f32, s.phase_current_a[1] as f32],
-                motor_angle_rad: s.motor_angle_rad as f32,
-                bus_v: s.bus_v as f32,
-            });
-            faults[j] |= last_out[j].faults;
-        }
-        // Integrate one PWM period with the duties computed one period ago.
-        let v: Vec<[f64; 3]> = (0..J)
-            .map(|j| phase_voltages(&setup.plants[j], duties[j]))
-            .collect();
-        for _ in 0..substeps {
-            let mut tau = [0.0f64; J];
-            for j in 0..J {
-                let c = &setup.plants[j];
-                let motor_angle = q[j] * c.gear_ratio;
-                let th = c.pole_pairs as f64 * (motor_angle - c.encoder_offset_rad);
-                motor_electrical_step(
-                    c,
-                    &mut motors[j].i_abc_a,
-                    v[j],
-                    th,
-                    qd[j] * c.gear_ratio,
-                    dt,
-                );
-                let t_motor = 1.5
-                    * c.pole_pairs as f64
-                    * c.flux_linkage_wb
-                    * q_current_a(motors[j].i_abc_a, th);
-                tau[j] = t_motor * c.gear_ratio * c.gear_efficiency;
-            }
-            let m = mech.mass_matrix(&q);
-            let h = mech.bias_torques_nm(t, &q, &qd);
-            let mm = DMatrix::<f64>::from_fn(J, J, |r, c| {
-                m[r][c] + if r == c { reflected[r] } else { 0.0 }
-            });
-            let rhs = DVector::<f64>::from_fn(J, |r, _| tau[r] - h[r]);
-            let qdd = mm
-                .lu()
-                .solve(&rhs)
-                .ok_or_else(|| anyhow::anyhow!("singular mass matrix at t = {t}"))?;
-            for j in 0..J {
-                qd[j] += qdd[j] * dt;
-                q[j] += qd[j] * dt;
-            }
-            t += dt;
-        }
-        for j in 0..J {
-            duties[j] = last_out[j].duties.map(f64::from);
-            let e = setup.trajectories[j].at(t).0 - q[j];
-            se[j] += e * e;
-            let c = &setup.plants[j];
-            let th = c.pole_pairs as f64 * (q[j] * c.gear_ratio - c.encoder_offset_rad);
-            siq[j] += q_current_a(motors[j].i_abc_a, th).powi(2);
-        }
-    }
-    let nf = n.max(1) as f64;
-    Ok(std::array::from_fn(|j| JointReport {
-        rms_error_rad: (se[j] / nf).sqrt(),
-        rms_iq_a: (siq[j] / nf).sqrt(),
-        faults: faults[j],
-        zero_feedforward_ticks: zero_ticks[j],
+    let runs: Vec<JointRun> = run_joints(
+        &mut joints,
+        &mut setup.mechanics.clone(),
+        |t| std::array::from_fn(|k| setup.trajectories[k].at(t)),
+        setup.compensator_hz,
+        setup.duration_s,
+    )?;
+    Ok(std::array::from_fn(|k| JointReport {
+        rms_error_rad: runs[k].rms_error_rad,
+        rms_iq_a: runs[k].rms_iq_a,
+        faults: runs[k].faults,
+        zero_feedforward_ticks: runs[k].source_ticks[0],
     }))
 }
 
@@ -374,7 +271,7 @@ mod tests {
 
     #[test]
     fn wrist_exchanges_states_and_coupled_feedforward_wins_on_every_joint() {
-        let mut setup = MultiJointSetup::wrist(1000.0, 3);
+        let mut setup = MultiJointSetup::wrist(1000, 3).unwrap();
         setup.duration_s = 3.0;
         let none = run_multi_joint(&setup, MultiFeedforward::Mode(FeedforwardMode::None)).unwrap();
         let alone = run_multi_joint(&setup, MultiFeedforward::Decoupled).unwrap();

@@ -334,7 +334,7 @@ mod tests {
             current_lsb_a: 0.0,
             bus_noise_v: 0.0,
             seed: 1,
-            ..crate::SingleJointSetup::wrist_joint(1000.0, 1).plant
+            ..crate::SingleJointSetup::wrist_joint(1000, 1).plant()
         }
     }
 

@@ -4,9 +4,11 @@
 //! friction (Stribeck, LuGre presliding, load-dependent, thermal drift) and ripple
 //! through [`plant_sim::drive::drive_torque_step`] (the same function the simulator
 //! steps), the reflected rotor inertia in the mass matrix; per joint a motor (R, L,
-//! back-EMF, Kt, gear) driven through PWM duties, a quantised encoder and noisy,
-//! quantised current sensing ([`super::plant`]). One firmware `JointDrive` +
-//! `Compensator<3, _, _>` per joint; each compensator receives the other joints'
+//! back-EMF, Kt, gear: the joint's drive profile) driven through PWM duties, a
+//! quantised encoder and noisy, quantised current sensing ([`super::plant`]). One
+//! simulated board per joint ([`super::joint`]): its configuration block through the
+//! firmware's start-up against the image's joints and profiles, then a firmware
+//! `JointDrive` + `Compensator<3, _, _>`; each compensator receives the other joints'
 //! states as `JointStateMessage` wire frames one compensator tick late.
 //!
 //! Feedforward ([`WristFeedforward`]): none, the identified model (the firmware's f32
@@ -14,26 +16,22 @@
 //! int16 (the firmware kernels through `firmware::control::LstmPredictor`, networks
 //! arranged/quantised at run time by `fw_export`).
 
-use super::plant::{
-    JointPlantConfig, motor_electrical_step, noise, phase_voltages, q_current_a, sense_joint,
+use super::joint::{
+    BOARD_PWM_HZ, Mechanism, SimulatedHardware, SimulatedJoint, config_block_of_index, run_joints,
 };
+use super::plant::JointPlantConfig;
 use anyhow::{Context, bail, ensure};
 use compnet::data::FeatureSpec;
 use compnet::model::LstmModel;
 use firmware::control::{
-    BusClock, CascadeConfig, Compensator, CompensatorConfig, CurrentLoopConfig, DriveConfig,
-    DriveOutput, FaultFlags, FeedforwardSource, JointDrive, JointReference, JointState,
-    LstmPredictor, NoPredictor, SensorSample, StateLimits, TorqueNetwork, TorquePredictor,
+    JointConfigBlock, JointProfile, LstmPredictor, NoPredictor, TorqueNetwork, TorquePredictor,
 };
 use firmware::dynamics::RigidBodyModel;
 use firmware::features::{DRIVE_INPUTS_PER_JOINT, FRICTION_FEATURES};
 use firmware::nn::format::{FeaturePreset, I16Weights};
 use fw_export::{F32Net, QuantNet};
-use nalgebra::Matrix3;
+use nalgebra::{Matrix3, Vector3};
 use plant_sim::{CommandedTrajectory, DriveState, PlantEffects, PlantParameters};
-use rand::SeedableRng;
-use rand_chacha::ChaCha8Rng;
-use rand_distr::Normal;
 
 /// The wrist's robot joints (0-based): the paper's joints 4, 5, 6.
 pub const WRIST_JOINTS: [usize; 3] = [3, 4, 5];
@@ -201,7 +199,8 @@ impl WristLstm {
     }
 }
 
-/// Everything a wrist run needs.
+/// Everything a wrist run needs: the true plant, the image's joints and profiles, each
+/// board's configuration block and what only the simulation has.
 #[derive(Clone, Debug)]
 pub struct WristSetup {
     /// Rigid body of the arm (all joints).
@@ -214,23 +213,31 @@ pub struct WristSetup {
     pub trajectory: CommandedTrajectory,
     /// Simulated seconds (at most the trajectory's duration).
     pub duration_s: f64,
-    /// Per-joint motor, gear and sensors.
-    pub motors: [JointPlantConfig; J],
-    /// Per-joint firmware drive.
-    pub drives: [DriveConfig; J],
-    /// Compensator configuration (`own_joint` set per joint).
-    pub compensator: CompensatorConfig,
+    /// The compensated joints of the image (0-based robot joints, a model file's
+    /// `JOINT_INDICES`).
+    pub joint_indices: [usize; J],
+    /// Their drive profiles (a model file's `JOINT_PROFILES`); simulated joint `k` is
+    /// robot joint `WRIST_JOINTS[k]`, its motor and gear those of `profiles[k]`.
+    pub profiles: [JointProfile; J],
+    /// Each simulated board's configuration block (encoded).
+    pub config_blocks: [[u8; JointConfigBlock::LEN]; J],
+    /// Per joint: what only the simulation has (rotor inertia, bus, sensors, seed).
+    pub hardware: [SimulatedHardware; J],
+    /// Compensator rate, Hz.
+    pub compensator_hz: u32,
 }
 
 impl WristSetup {
-    /// The default wrist: motors from the plant file (Kt, gear, rotor inertia, winding
-    /// resistance, current ADC), 7 pole pairs and 0.5 mH (estimates), 48 V, 20 kHz PWM,
-    /// 14-bit encoder, outer loops at 5 kHz, compensator at `compensator_hz`.
+    /// The wrist of `robot`: its joints 4-6 as the exporter writes them into a model
+    /// file (each joint's drive profile from the description, the board's where it gives
+    /// none), each board configured as its joint; the true plant's rotor inertia and
+    /// current sensing (noise, ADC step) from `plant`, 48 V, the board's 20 kHz PWM,
+    /// 14-bit encoder; compensator at `compensator_hz`.
     pub fn new(
         robot: robot::Robot,
         plant: PlantParameters,
         trajectory: CommandedTrajectory,
-        compensator_hz: f64,
+        compensator_hz: u32,
         seed: u64,
     ) -> anyhow::Result<Self> {
         ensure!(
@@ -242,80 +249,21 @@ impl WristSetup {
             "the trajectory moves {} joints; the wrist needs 3",
             trajectory.joint_count()
         );
-        let pole_pairs = 7u8;
-        let motors: [JointPlantConfig; J] = std::array::from_fn(|k| {
+        let profiles = WRIST_JOINTS.map(|j| robot.joints[j].drive_profile());
+        let hardware: [SimulatedHardware; J] = std::array::from_fn(|k| {
             let d = &plant.joints[WRIST_JOINTS[k]];
-            JointPlantConfig {
-                pole_pairs,
-                phase_resistance_ohm: d.winding_resistance_ohm,
-                phase_inductance_h: 5e-4,
-                flux_linkage_wb: d.motor_torque_constant_nm_a / (1.5 * pole_pairs as f64),
+            SimulatedHardware {
                 rotor_inertia_kg_m2: d.rotor_inertia_kgm2,
-                gear_ratio: d.gear_ratio,
-                gear_efficiency: 1.0,
                 bus_v: 48.0,
-                pwm_hz: 20_000.0,
+                pwm_hz: BOARD_PWM_HZ,
                 substeps: 10,
                 encoder_bits: 14,
-                encoder_offset_rad: 0.05,
                 current_noise_a: plant.sensor.current_noise_a,
                 current_lsb_a: 2.0 * d.adc_full_scale_a / (1u64 << plant.sensor.adc_bits) as f64,
                 bus_noise_v: 0.1,
                 seed: seed.wrapping_mul(31).wrapping_add(k as u64),
             }
         });
-        let drives: [DriveConfig; J] = std::array::from_fn(|k| {
-            let m = &motors[k];
-            DriveConfig {
-                current: CurrentLoopConfig::tuned(m.motor(), m.pwm_hz as f32),
-                cascade: CascadeConfig {
-                    rate_hz: 5000.0,
-                    position_kp: 40.0,
-                    position_ki: 0.0,
-                    position_kd: 0.0,
-                    max_velocity_rad_s: 4.0,
-                    velocity_kp: 3.5,
-                    velocity_ki: 120.0,
-                    velocity_kd: 0.0,
-                    max_current_a: 8.0,
-                    velocity_filter_alpha: 0.3,
-                },
-                gear_ratio: m.gear_ratio as f32,
-                encoder_offset_rad: m.encoder_offset_rad as f32,
-                max_current_a: 8.0,
-                overcurrent_trip_a: 9.5,
-                bus_min_v: 36.0,
-                bus_max_v: 56.0,
-                max_abs_q_ref_rad: 6.3,
-            }
-        });
-        let gain = plant.joints[WRIST_JOINTS[0]].drive_gain_nm_a();
-        ensure!(
-            WRIST_JOINTS
-                .iter()
-                .all(|&j| (plant.joints[j].drive_gain_nm_a() - gain).abs() < 1e-9),
-            "the wrist drives need one drive gain (the compensator's)"
-        );
-        let compensator = CompensatorConfig {
-            rate_hz: compensator_hz as f32,
-            own_joint: 0,
-            state_limits: StateLimits {
-                max_abs_q_rad: 6.3,
-                max_abs_qd_rad_s: 5.0,
-                max_abs_qdd_rad_s2: 100.0,
-                max_abs_tau_nm: 300.0,
-            },
-            watchdog_ticks: 3,
-            max_message_age_us: (3.5e6 / compensator_hz) as u32,
-            bus_clock: BusClock::Synchronised,
-            max_torque_nm: 50.0,
-            max_torque_rate_nm_s: 2_000.0,
-            max_lstm_correction_nm: 10.0,
-            warmup_ticks: 10,
-            lstm_retry_ticks: 50,
-            drive_gain_nm_per_a: gain as f32,
-            max_current_a: 8.0,
-        };
         let duration_s = trajectory.duration_s();
         Ok(Self {
             robot,
@@ -323,15 +271,22 @@ impl WristSetup {
             effects: PlantEffects::all(),
             trajectory,
             duration_s,
-            motors,
-            drives,
-            compensator,
+            joint_indices: WRIST_JOINTS,
+            profiles,
+            config_blocks: WRIST_JOINTS.map(config_block_of_index),
+            hardware,
+            compensator_hz,
         })
+    }
+
+    /// Simulated joint `k`'s motor, gear and sensors.
+    pub fn motor(&self, k: usize) -> JointPlantConfig {
+        JointPlantConfig::from_profile(&self.profiles[k], &self.hardware[k])
     }
 }
 
 /// Per-joint results of a wrist run.
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct WristJointReport {
     /// Robot joint (1-based).
     pub joint: usize,
@@ -343,18 +298,35 @@ pub struct WristJointReport {
     pub rms_iq_a: f64,
     /// Faults of the drive and (after its first tick) the compensator, as bits.
     pub fault_bits: u32,
-    /// Compensator ticks by feedforward source: zero, model, model + LSTM.
+    /// Compensator ticks by feedforward source: zero, model, model + LSTM (a board
+    /// whose configuration block was refused counts every tick as zero).
     pub source_ticks: [u64; 3],
+    /// Why the board's configuration block was refused (it then runs without
+    /// feedforward and sends no state frames); absent when it was accepted.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub startup_fault: Option<String>,
 }
 
-/// The true wrist: arm rigid body (f64 Newton-Euler of the robot file) and drives.
-struct TrueWrist {
+/// The true wrist: arm rigid body (f64 Newton-Euler of the robot file) and the
+/// drives' friction, ripple and temperature (the plant simulator's).
+struct TrueWrist<'a> {
     arm: plant_sim::RobotRigidBody,
     effects: PlantEffects,
+    drives: [&'a plant_sim::JointDrive; J],
     states: [DriveState; J],
+    ambient_c: f64,
+    /// Held over a PWM period: link mass matrix, rigid bias, inverse of the mass
+    /// matrix with the rotors.
+    m_links: Matrix3<f64>,
+    h_rigid: [f64; J],
+    m_inv: Matrix3<f64>,
+    /// Accelerations of the last step (the torque the links transmit).
+    qdd: [f64; J],
+    /// Friction power x time over the period, J.
+    friction_energy_j: [f64; J],
 }
 
-impl TrueWrist {
+impl TrueWrist<'_> {
     fn rigid(&self, q: &[f64; J], qd: &[f64; J], qdd: &[f64; J]) -> [f64; J] {
         use plant_sim::RigidBodyModel as _;
         let mut fq = [0.0; 6];
@@ -386,11 +358,76 @@ impl TrueWrist {
     }
 }
 
-struct Motor {
-    i_abc_a: [f64; 3],
-    rng: ChaCha8Rng,
-    current_noise: Normal<f64>,
-    bus_noise: Normal<f64>,
+impl Mechanism<J> for TrueWrist<'_> {
+    /// Mass matrix (links + reflected rotors) and rigid bias held over the PWM period.
+    fn begin_period(
+        &mut self,
+        t_s: f64,
+        q: &[f64; J],
+        qd: &[f64; J],
+        reflected: &[f64; J],
+    ) -> anyhow::Result<()> {
+        let (m_links, h_rigid) = self.mass_and_bias(q, qd);
+        let mut mm = m_links;
+        for j in 0..J {
+            mm[(j, j)] += reflected[j];
+        }
+        self.m_inv = mm
+            .try_inverse()
+            .ok_or_else(|| anyhow::anyhow!("singular mass matrix at t = {t_s}"))?;
+        self.m_links = m_links;
+        self.h_rigid = h_rigid;
+        self.friction_energy_j = [0.0; J];
+        Ok(())
+    }
+
+    /// Friction and ripple every step (`plant_sim::drive::drive_torque_step`).
+    fn accelerations(
+        &mut self,
+        _t_s: f64,
+        q: &[f64; J],
+        qd: &[f64; J],
+        tau: &[f64; J],
+        _reflected: &[f64; J],
+        dt_s: f64,
+    ) -> anyhow::Result<[f64; J]> {
+        let transmitted = self.m_links * Vector3::from(self.qdd);
+        let mut rhs = Vector3::zeros();
+        for j in 0..J {
+            let d = plant_sim::drive::drive_torque_step(
+                self.drives[j],
+                &self.effects,
+                &mut self.states[j],
+                q[j],
+                qd[j],
+                0.0,
+                transmitted[j] + self.h_rigid[j],
+                self.ambient_c,
+                dt_s,
+            );
+            self.friction_energy_j[j] += d.friction_nm * qd[j] * dt_s;
+            rhs[j] = tau[j] - self.h_rigid[j] - d.total_nm();
+        }
+        let a = self.m_inv * rhs;
+        self.qdd = [a[0], a[1], a[2]];
+        Ok(self.qdd)
+    }
+
+    /// The drives' temperature (`plant_sim::drive::thermal_step`).
+    fn end_period(&mut self, iq_a: &[f64; J], period_s: f64) {
+        if self.effects.thermal {
+            for (j, &iq) in iq_a.iter().enumerate() {
+                plant_sim::drive::thermal_step(
+                    self.drives[j],
+                    &mut self.states[j],
+                    iq,
+                    self.friction_energy_j[j] / period_s,
+                    self.ambient_c,
+                    period_s,
+                );
+            }
+        }
+    }
 }
 
 fn reference(traj: &CommandedTrajectory, t: f64) -> [(f64, f64, f64); J] {
@@ -399,7 +436,9 @@ fn reference(traj: &CommandedTrajectory, t: f64) -> [(f64, f64, f64); J] {
     std::array::from_fn(|k| (q[k], qd[k], qdd[k]))
 }
 
-/// Run the wrist with the model and LSTM stages `make(joint)` gives each compensator.
+/// Run the wrist with the model and LSTM stages `make(slot)` gives the compensator of
+/// each board its configuration block names (`slot`: its index among the image's
+/// joints).
 pub fn run_wrist_with<M, L>(
     setup: &WristSetup,
     mut make: impl FnMut(usize) -> anyhow::Result<(M, L)>,
@@ -408,25 +447,18 @@ where
     M: TorquePredictor<J>,
     L: TorquePredictor<J>,
 {
-    let pwm_hz = setup.motors[0].pwm_hz;
-    ensure!(
-        setup
-            .motors
-            .iter()
-            .all(|m| m.pwm_hz == pwm_hz && m.substeps >= 1),
-        "all joints need one PWM rate"
-    );
-    let mut comps = Vec::with_capacity(J);
-    for j in 0..J {
-        let (m, l) = make(j)?;
-        let cfg = CompensatorConfig {
-            own_joint: j,
-            ..setup.compensator
-        };
-        comps.push(
-            Compensator::<J, M, L>::new(cfg, m, l)
-                .map_err(|e| anyhow::anyhow!("compensator of joint {j}: {e:?}"))?,
-        );
+    let r0 = reference(&setup.trajectory, 0.0);
+    let mut joints = Vec::with_capacity(J);
+    for (k, r) in r0.iter().enumerate() {
+        joints.push(SimulatedJoint::<J, M, L>::start(
+            &setup.config_blocks[k],
+            &setup.joint_indices,
+            &setup.profiles,
+            setup.compensator_hz,
+            setup.motor(k),
+            r.0,
+            &mut make,
+        )?);
     }
     let mut plant = TrueWrist {
         arm: plant_sim::RobotRigidBody::new(&setup.robot),
@@ -434,201 +466,30 @@ where
             rotor_inertia: false, // in the mass matrix instead
             ..setup.effects
         },
+        drives: WRIST_JOINTS.map(|j| &setup.plant.joints[j]),
         states: [DriveState::at_rest(setup.plant.ambient_temperature_c); J],
+        ambient_c: setup.plant.ambient_temperature_c,
+        m_links: Matrix3::zeros(),
+        h_rigid: [0.0; J],
+        m_inv: Matrix3::zeros(),
+        qdd: [0.0; J],
+        friction_energy_j: [0.0; J],
     };
-    let drive_params: [&plant_sim::JointDrive; J] = WRIST_JOINTS.map(|j| &setup.plant.joints[j]);
-    let ambient = setup.plant.ambient_temperature_c;
-    let reflected: [f64; J] = std::array::from_fn(|k| {
-        setup.motors[k].rotor_inertia_kg_m2 * setup.motors[k].gear_ratio.powi(2)
-    });
-    let mut drives: Vec<JointDrive> = setup.drives.iter().map(|d| JointDrive::new(*d)).collect();
-    let mut motors: Vec<Motor> = setup
-        .motors
-        .iter()
-        .map(|p| Motor {
-            i_abc_a: [0.0; 3],
-            rng: ChaCha8Rng::seed_from_u64(p.seed),
-            current_noise: noise(p.current_noise_a),
-            bus_noise: noise(p.bus_noise_v),
-        })
-        .collect();
-    let r0 = reference(&setup.trajectory, 0.0);
-    let mut q: [f64; J] = r0.map(|r| r.0);
-    let mut qd: [f64; J] = r0.map(|r| r.1);
-    let mut qdd = [0.0f64; J];
-    for (d, q0) in drives.iter_mut().zip(q.iter()) {
-        d.set_position_origin(*q0 as f32);
-    }
-    let comp_every = (pwm_hz / setup.compensator.rate_hz as f64).round().max(1.0) as u64;
-    let period_s = comp_every as f64 / pwm_hz;
-    let n = (setup.duration_s.min(setup.trajectory.duration_s()) * pwm_hz).floor() as u64;
-    let substeps = setup.motors[0].substeps;
-    let dt = 1.0 / (pwm_hz * substeps as f64);
-    let gain = setup.compensator.drive_gain_nm_per_a;
-    let mut duties = [[0.5f64; 3]; J];
-    let mut last_out = [DriveOutput::default(); J];
-    let mut iq_sum = [0.0f64; J];
-    let mut iq_count = 0u32;
-    let mut bus = super::StateBus::default();
-    let (mut se, mut max_e, mut siq) = ([0.0f64; J], [0.0f64; J], [0.0f64; J]);
-    let mut faults = [FaultFlags::NONE; J];
-    let mut sources = [[0u64; 3]; J];
-    let state_at = |t_mid: f64, out: &DriveOutput, tau_meas: f32, k: usize| {
-        let r = reference(&setup.trajectory, t_mid)[k];
-        JointState {
-            q_ref_rad: r.0 as f32,
-            qd_ref_rad_s: r.1 as f32,
-            qdd_ref_rad_s2: r.2 as f32,
-            q_meas_rad: out.q_rad,
-            qd_meas_rad_s: out.qd_rad_s,
-            tau_meas_nm: tau_meas,
-        }
-    };
-    for k in 0..n {
-        let t_tick = k as f64 / pwm_hz;
-        if k % comp_every == 0 {
-            bus.deliver(&mut comps)?;
-            // The feedforward is held for one period: it is computed for the period's
-            // middle (the reference is known ahead).
-            let t_mid = t_tick + 0.5 * period_s;
-            for j in 0..J {
-                // Measured torque: drive gain x the mean measured q current over the
-                // last period.
-                let tau_meas = if iq_count > 0 {
-                    (iq_sum[j] / iq_count as f64) as f32 * gain
-                } else {
-                    0.0
-                };
-                let own = state_at(t_mid, &last_out[j], tau_meas, j);
-                let o = comps[j].tick(&own, (t_tick * 1e6) as u32);
-                drives[j].set_feedforward_current(o.current_a);
-                if k > 0 {
-                    faults[j] |= o.faults;
-                }
-                sources[j][match o.source {
-                    FeedforwardSource::Zero => 0,
-                    FeedforwardSource::Model => 1,
-                    FeedforwardSource::ModelLstm => 2,
-                }] += 1;
-                // The frame carries the references for the receivers' next tick and
-                // this tick's measurements.
-                bus.send(
-                    j,
-                    (t_tick * 1e6) as u32,
-                    state_at(t_mid + period_s, &last_out[j], tau_meas, j),
-                );
-            }
-            iq_sum = [0.0; J];
-            iq_count = 0;
-        }
-        let r = reference(&setup.trajectory, t_tick);
-        for j in 0..J {
-            let c = &setup.motors[j];
-            drives[j].set_reference(&JointReference {
-                q_rad: r[j].0 as f32,
-                qd_rad_s: r[j].1 as f32,
-                qdd_rad_s2: r[j].2 as f32,
-            });
-            let m = &mut motors[j];
-            let s = sense_joint(
-                c,
-                m.i_abc_a,
-                q[j] * c.gear_ratio,
-                &mut m.rng,
-                &m.current_noise,
-                &m.bus_noise,
-            );
-            last_out[j] = drives[j].pwm_tick(&SensorSample {
-                phase_current_a: [s.phase_current_a[0] as f32, s.phase_current_a[1] as f32],
-                motor_angle_rad: s.motor_angle_rad as f32,
-                bus_v: s.bus_v as f32,
-            });
-            faults[j] |= last_out[j].faults;
-            iq_sum[j] += last_out[j].iq_meas_a as f64;
-        }
-        iq_count += 1;
-        // Mechanics: mass matrix (links + reflected rotors) and rigid bias held over the
-        // PWM period; motors, friction and ripple every substep.
-        let (m_links, h_rigid) = plant.mass_and_bias(&q, &qd);
-        let mut mm = m_links;
-        for j in 0..J {
-            mm[(j, j)] += reflected[j];
-        }
-        let m_inv = mm
-            .try_inverse()
-            .ok_or_else(|| anyhow::anyhow!("singular mass matrix at t = {t_tick}"))?;
-        let v: [[f64; 3]; J] = std::array::from_fn(|j| phase_voltages(&setup.motors[j], duties[j]));
-        let mut friction_power = [0.0f64; J];
-        for _ in 0..substeps {
-            let transmitted = m_links * nalgebra::Vector3::from(qdd);
-            let mut rhs = nalgebra::Vector3::zeros();
-            for j in 0..J {
-                let c = &setup.motors[j];
-                let th = c.pole_pairs as f64 * (q[j] * c.gear_ratio - c.encoder_offset_rad);
-                motor_electrical_step(
-                    c,
-                    &mut motors[j].i_abc_a,
-                    v[j],
-                    th,
-                    qd[j] * c.gear_ratio,
-                    dt,
-                );
-                let t_motor = 1.5
-                    * c.pole_pairs as f64
-                    * c.flux_linkage_wb
-                    * q_current_a(motors[j].i_abc_a, th);
-                let d = plant_sim::drive::drive_torque_step(
-                    drive_params[j],
-                    &plant.effects,
-                    &mut plant.states[j],
-                    q[j],
-                    qd[j],
-                    0.0,
-                    transmitted[j] + h_rigid[j],
-                    ambient,
-                    dt,
-                );
-                friction_power[j] += d.friction_nm * qd[j] / substeps as f64;
-                rhs[j] = t_motor * c.gear_ratio * c.gear_efficiency - h_rigid[j] - d.total_nm();
-            }
-            let a = m_inv * rhs;
-            for j in 0..J {
-                qdd[j] = a[j];
-                qd[j] += qdd[j] * dt;
-                q[j] += qd[j] * dt;
-            }
-        }
-        let t_end = (k + 1) as f64 / pwm_hz;
-        let r_end = reference(&setup.trajectory, t_end);
-        for j in 0..J {
-            duties[j] = last_out[j].duties.map(f64::from);
-            let c = &setup.motors[j];
-            let th = c.pole_pairs as f64 * (q[j] * c.gear_ratio - c.encoder_offset_rad);
-            let iq = q_current_a(motors[j].i_abc_a, th);
-            if plant.effects.thermal {
-                plant_sim::drive::thermal_step(
-                    drive_params[j],
-                    &mut plant.states[j],
-                    iq,
-                    friction_power[j],
-                    ambient,
-                    1.0 / pwm_hz,
-                );
-            }
-            let e = r_end[j].0 - q[j];
-            se[j] += e * e;
-            max_e[j] = max_e[j].max(e.abs());
-            siq[j] += iq * iq;
-        }
-    }
-    let nf = n.max(1) as f64;
-    Ok(std::array::from_fn(|j| WristJointReport {
-        joint: WRIST_JOINTS[j] + 1,
-        rms_error_rad: (se[j] / nf).sqrt(),
-        max_error_rad: max_e[j],
-        rms_iq_a: (siq[j] / nf).sqrt(),
-        fault_bits: faults[j].bits() as u32,
-        source_ticks: sources[j],
+    let runs = run_joints(
+        &mut joints,
+        &mut plant,
+        |t| reference(&setup.trajectory, t),
+        setup.compensator_hz,
+        setup.duration_s.min(setup.trajectory.duration_s()),
+    )?;
+    Ok(std::array::from_fn(|k| WristJointReport {
+        joint: WRIST_JOINTS[k] + 1,
+        rms_error_rad: runs[k].rms_error_rad,
+        max_error_rad: runs[k].max_error_rad,
+        rms_iq_a: runs[k].rms_iq_a,
+        fault_bits: runs[k].faults.bits() as u32,
+        source_ticks: runs[k].source_ticks,
+        startup_fault: runs[k].startup.err().map(|f| format!("{f:?}")),
     }))
 }
 
@@ -780,4 +641,123 @@ pub fn markdown_table(reports: &[ModeReport]) -> String {
         }
     }
     s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::joint::config_block;
+    use firmware::control::{FaultFlags, JointConfigFault, SubsetModel};
+    use firmware::model::default as compiled;
+
+    /// The compiled-in model as an image: its compensated joints and profiles on the
+    /// wrist, every board's compensator built from its dynamics and network as the
+    /// board builds them.
+    fn image_setup(seconds: f64) -> WristSetup {
+        let robot = robot::RobotSource::BuiltIn.load().unwrap();
+        let traj = plant_sim::trajectory::trajectory_or_seeded(None, 1, 2, J).unwrap();
+        let mut s = WristSetup::new(
+            robot,
+            PlantParameters::default_robot(),
+            traj,
+            compiled::CONTROL_RATE_HZ,
+            3,
+        )
+        .unwrap();
+        s.joint_indices = compiled::JOINT_INDICES;
+        s.profiles = compiled::JOINT_PROFILES;
+        s.duration_s = seconds;
+        s
+    }
+
+    fn run_image(s: &WristSetup) -> [WristJointReport; J] {
+        let model_joints =
+            firmware::model::dynamics_indices(compiled::JOINT_INDICES, compiled::DYNAMICS_JOINTS);
+        run_wrist_with(s, |_slot| {
+            let model = SubsetModel {
+                model: &compiled::DYNAMICS,
+                joints: model_joints,
+                fixed_q_rad: [0.0; compiled::DYNAMICS_JOINTS],
+            };
+            let lstm = LstmPredictor::<_, J, { compiled::INPUTS }>::new(
+                &compiled::NETWORK,
+                compiled::FEATURE_PRESET,
+            )
+            .context("the compiled-in network takes its preset's layout")?
+            .with_linear_stage(compiled::LINEAR_STAGE);
+            Ok((model, lstm))
+        })
+        .unwrap()
+    }
+
+    #[test]
+    fn the_default_robots_wrist_runs_the_compiled_in_profiles() {
+        let robot = robot::RobotSource::BuiltIn.load().unwrap();
+        let traj = plant_sim::trajectory::trajectory_or_seeded(None, 1, 2, J).unwrap();
+        let s = WristSetup::new(robot, PlantParameters::default_robot(), traj, 100, 3).unwrap();
+        assert_eq!(s.joint_indices, compiled::JOINT_INDICES);
+        assert_eq!(s.profiles, compiled::JOINT_PROFILES);
+        // The simulated motor and gear are the ones the drive is configured for.
+        for k in 0..J {
+            let m = s.motor(k);
+            let p = &s.profiles[k];
+            assert_eq!(m.motor(), p.motor);
+            assert_eq!(m.gear_ratio, f64::from(p.gear_ratio));
+            assert_eq!(m.encoder_offset_rad, f64::from(p.encoder_offset_rad));
+        }
+    }
+
+    #[test]
+    fn one_image_runs_as_joint_4_5_or_6_by_its_configuration_block() {
+        let s = image_setup(0.4);
+        // Three boards, one image: they differ only in their configuration blocks.
+        assert_eq!(
+            s.config_blocks,
+            [4u8, 5, 6].map(|n| JointConfigBlock { joint_number: n }.encode())
+        );
+        let r = run_image(&s);
+        let bus =
+            FaultFlags::STATE_STALE | FaultFlags::STATE_REJECTED | FaultFlags::STATE_OUT_OF_ORDER;
+        for (k, j) in r.iter().enumerate() {
+            println!("{j:?}");
+            assert_eq!(j.startup_fault, None);
+            assert_eq!(j.joint, 4 + k);
+            // Every board sent as the joint its block names and heard the others:
+            // after the first tick, model + LSTM on every tick.
+            assert_eq!(j.source_ticks, [1, 0, 39], "{j:?}");
+            assert!(
+                !FaultFlags::from_bits(j.fault_bits as u16).intersects(bus),
+                "{j:?}"
+            );
+            assert!(j.rms_error_rad < 2e-3, "{j:?}");
+        }
+    }
+
+    #[test]
+    fn a_refused_block_runs_without_feedforward_and_reports_why() {
+        for (block, fault) in [
+            ([0xFF; JointConfigBlock::LEN], JointConfigFault::Erased),
+            (config_block(2), JointConfigFault::JointNotCompensated(2)),
+        ] {
+            let mut s = image_setup(0.3);
+            s.config_blocks[1] = block;
+            let r = run_image(&s);
+            for j in &r {
+                println!("{j:?}");
+            }
+            // Joint 5's board: no compensator, the fault in its report, yet its drive
+            // (the profile all three joints share) tracks.
+            assert_eq!(r[1].startup_fault, Some(format!("{fault:?}")));
+            assert_eq!(r[1].source_ticks, [30, 0, 0]);
+            assert!(r[1].rms_error_rad < 2e-3, "{:?}", r[1]);
+            // It sends no state frames: the others' watchdogs see joint 5 stale and
+            // their feedforward falls back to zero, as on the board.
+            for k in [0, 2] {
+                assert_eq!(r[k].startup_fault, None);
+                let f = FaultFlags::from_bits(r[k].fault_bits as u16);
+                assert!(f.contains(FaultFlags::STATE_STALE), "{:?}", r[k]);
+                assert_eq!(r[k].source_ticks, [30, 0, 0], "{:?}", r[k]);
+            }
+        }
+    }
 }

@@ -766,7 +766,9 @@ impl Report {
             md,
             "\n## Closed loop (software in the loop)\n\nThe wrist on the true plant (motor, gear, \
              friction, ripple, sensors) driven through PWM duties by the firmware's current loop, \
-             cascade and compensator, one instance per joint, states exchanged with one tick of \
+             cascade and compensator, one instance per joint, each started from its configuration \
+             block as joint 4, 5 or 6 with that joint's drive profile (the `JOINT_PROFILES` the \
+             board runs: drive, compensator, motor and gear), states exchanged with one tick of \
              bus latency, along the test trajectory; feedforward from the `paper` network.\n"
         );
         md.push_str(&sil_md);

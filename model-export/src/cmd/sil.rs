@@ -41,8 +41,8 @@ pub struct SilArgs {
     #[arg(long)]
     pub seconds: Option<f64>,
     /// Compensator rate [Hz] (the LSTM's training rate: 100).
-    #[arg(long, default_value_t = 100.0)]
-    pub compensator_hz: f64,
+    #[arg(long, default_value_t = 100, value_parser = clap::value_parser!(u32).range(1..=20_000))]
+    pub compensator_hz: u32,
     /// Sensor-noise seed.
     #[arg(long, default_value_t = 7)]
     pub seed: u64,
@@ -59,10 +59,6 @@ pub fn run(a: &SilArgs) -> anyhow::Result<()> {
     let Some(model_path) = &a.model else {
         bail!("internal: the wrist SIL needs --model");
     };
-    ensure!(
-        a.compensator_hz.is_finite() && a.compensator_hz > 0.0 && a.compensator_hz <= 20_000.0,
-        "--compensator-hz must be in (0, 20000]"
-    );
     let source = RobotSource::from(a.robot.clone());
     let robot = a.chain.load_and_warn(&source)?;
     let plant = match &a.plant {
@@ -116,10 +112,12 @@ pub fn run(a: &SilArgs) -> anyhow::Result<()> {
         });
     }
     let title = format!(
-        "wrist SIL: joints 4-6 of {} (1-3 locked at 0), true plant {:?}; {:.1} s at 20 kHz PWM, outer loops 5 kHz, compensator {} Hz, bus latency 1 tick, seed {}; model {}{}",
+        "wrist SIL: joints 4-6 of {} (1-3 locked at 0; drives, compensators and motors from its joint profiles, boards configured as joints 4, 5, 6), true plant {:?}; {:.1} s at {} Hz PWM, outer loops {} Hz, compensator {} Hz, bus latency 1 tick, seed {}; model {}{}",
         source,
         setup.effects,
         setup.duration_s,
+        setup.hardware[0].pwm_hz,
+        setup.profiles[0].cascade.rate_hz,
         a.compensator_hz,
         a.seed,
         model_path.display(),
@@ -145,7 +143,7 @@ pub fn run(a: &SilArgs) -> anyhow::Result<()> {
         Some(_) => Some(serde_json::to_string_pretty(&WristReport {
             title: title.clone(),
             duration_s: setup.duration_s,
-            compensator_hz: a.compensator_hz,
+            compensator_hz: f64::from(a.compensator_hz),
             seed: a.seed,
             results: reports.clone(),
         })?),
