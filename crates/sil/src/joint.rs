@@ -20,6 +20,7 @@ use crate::StateBus;
 use crate::plant::{
     JointPlantConfig, motor_electrical_step, noise, phase_voltages, q_current_a, sense_joint,
 };
+use firmware::adaptation::AdaptationConfig;
 use firmware::control::{
     Compensator, DriveOutput, FaultFlags, FeedforwardSource, JointConfigBlock, JointConfigFault,
     JointDrive, JointProfile, JointReference, JointSlot, JointState, JointStateMessage,
@@ -187,10 +188,21 @@ pub struct SimulatedJoint<const J: usize, M, L> {
 }
 
 impl<const J: usize, M: TorquePredictor<J>, L: TorquePredictor<J>> SimulatedJoint<J, M, L> {
+    /// The same board with its compensator's friction adaptation off: a run without
+    /// any feedforward (the adaptation alone is a feedforward).
+    pub fn without_adaptation(mut self) -> Self {
+        self.compensator = self
+            .compensator
+            .map(|c| c.with_adaptation(AdaptationConfig::OFF));
+        self
+    }
+
     /// A board with configuration block `block` running an image whose compensated
     /// joints are `joint_indices` (0-based robot joints) with `profiles`, its
     /// compensator at `compensator_hz`, on the motor `plant` at rest at `q0_rad`.
-    /// `predictors(slot)` gives the model and LSTM stages of a configured joint.
+    /// `predictors(slot)` gives the model and LSTM stages of a configured joint; its
+    /// compensator runs the profile's friction adaptation after them, unless it has
+    /// neither stage (no feedforward at all).
     pub fn start(
         block: &[u8; JointConfigBlock::LEN],
         joint_indices: &[usize; J],
@@ -204,6 +216,7 @@ impl<const J: usize, M: TorquePredictor<J>, L: TorquePredictor<J>> SimulatedJoin
             joint,
             drive,
             compensator,
+            adaptation,
         } = plan_startup(
             block,
             joint_indices,
@@ -214,9 +227,18 @@ impl<const J: usize, M: TorquePredictor<J>, L: TorquePredictor<J>> SimulatedJoin
         let compensator = match (joint, compensator) {
             (Ok(slot), Some(config)) => {
                 let (m, l) = predictors(slot.slot)?;
-                Some(Compensator::new(config, m, l).map_err(|e| {
+                let c = Compensator::new(config, m, l).map_err(|e| {
                     anyhow::anyhow!("compensator of joint {}: {e:?}", slot.joint_number)
-                })?)
+                })?;
+                // Without a model or an LSTM stage there is no feedforward at all (the
+                // adaptation alone would be one).
+                let stages =
+                    <M as TorquePredictor<J>>::PRESENT || <L as TorquePredictor<J>>::PRESENT;
+                Some(c.with_adaptation(if stages {
+                    adaptation
+                } else {
+                    AdaptationConfig::OFF
+                }))
             }
             _ => None,
         };

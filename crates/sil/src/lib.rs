@@ -227,7 +227,7 @@ pub fn run_single_joint(
             FeedforwardMode::InverseDynamics(s) => s,
         },
     };
-    let mut joints = [SimulatedJoint::<1, _, NoPredictor>::start(
+    let joint = SimulatedJoint::<1, _, NoPredictor>::start(
         &setup.config_block,
         &setup.joint_indices,
         &setup.profiles,
@@ -235,7 +235,11 @@ pub fn run_single_joint(
         plant,
         setup.trajectory.offset_rad,
         |_| Ok((predictor, NoPredictor)),
-    )?];
+    )?;
+    let mut joints = [match mode {
+        FeedforwardMode::None => joint.without_adaptation(),
+        FeedforwardMode::InverseDynamics(_) => joint,
+    }];
     let r = joint::run_joints(
         &mut joints,
         &mut SingleJointMechanism(setup.load),

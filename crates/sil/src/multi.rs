@@ -230,7 +230,7 @@ pub fn run_multi_joint<const J: usize>(
     };
     let mut joints = Vec::with_capacity(J);
     for (k, plant) in plants.iter().enumerate() {
-        joints.push(SimulatedJoint::<J, _, NoPredictor>::start(
+        let joint = SimulatedJoint::<J, _, NoPredictor>::start(
             &setup.config_blocks[k],
             &setup.joint_indices,
             &setup.profiles,
@@ -248,7 +248,11 @@ pub fn run_multi_joint<const J: usize>(
                     NoPredictor,
                 ))
             },
-        )?);
+        )?;
+        joints.push(match mode {
+            MultiFeedforward::Mode(FeedforwardMode::None) => joint.without_adaptation(),
+            _ => joint,
+        });
     }
     let runs: Vec<JointRun> = run_joints(
         &mut joints,

@@ -70,7 +70,8 @@ pub struct JointProfile {
 impl JointProfile {
     /// The joint-drive board's values: the wrist motor ([`MotorParameters::BOARD`]),
     /// a 100:1 gear, the cascade at 5 kHz, the UART state bus at 2 Mbaud with
-    /// free-running clocks, the friction adaptation over 2 s within +-10 N*m. The default of every field a robot description leaves out.
+    /// free-running clocks, the friction adaptation off (+-10 N*m when a time constant
+    /// turns it on). The default of every field a robot description leaves out.
     pub const BOARD: JointProfile = JointProfile {
         motor: MotorParameters::BOARD,
         gear_ratio: 100.0,
@@ -114,8 +115,10 @@ impl JointProfile {
         lstm_retry_ticks: 50,
         feedforward_max_current_a: 12.0,
         bus_baud: 2_000_000,
+        // Off: in the wrist SIL it raises the tracking error by a few per cent
+        // (crates/sil/README.md); a robot description turns it on per joint.
         adaptation: AdaptationConfig {
-            time_constant_s: 2.0,
+            time_constant_s: 0.0,
             max_correction_nm: 10.0,
         },
     };
