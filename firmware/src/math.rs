@@ -205,21 +205,24 @@ pub fn cos(x: f32) -> f32 {
 /// error <= 1.2e-7 (measured 1.11e-7, about 2 ulp of values near 1) for |x| <= 2^12 rad.
 #[inline]
 pub fn sin_cos(x: f32) -> (f32, f32) {
-    if !x.is_finite() {
-        return (f32::NAN, f32::NAN);
-    }
-    let x = if x.abs() > SIN_COS_REDUCTION_LIMIT_RAD {
+    // |x| as its bit pattern: non-negative floats order as their bits, so the range
+    // check is one integer compare, and NaN and the infinities are beyond it too.
+    let abs_bits = x.to_bits() & 0x7fff_ffff;
+    let x = if abs_bits > SIN_COS_REDUCTION_LIMIT_RAD.to_bits() {
+        if abs_bits >= f32::INFINITY.to_bits() {
+            return (f32::NAN, f32::NAN);
+        }
         libm::fmodf(x, TWO_PI)
     } else {
         x
     };
     let kf = x * TWO_OVER_PI;
-    // Round half away from zero; |kf| <= 2608 so the conversion cannot saturate.
-    let k = if kf >= 0.0 {
-        (kf + 0.5) as i32
-    } else {
-        (kf - 0.5) as i32
-    };
+    // Round half away from zero (kf + 0.5 or kf - 0.5, written as one add of the signed
+    // half: the same bits, one conversion); |kf| <= 2608 so it cannot saturate. kf has
+    // the sign of x (or is -0.0 for a tiny negative x, where either half gives k = 0),
+    // so the half is chosen from x, which is ready earlier.
+    let half = if x >= 0.0 { 0.5 } else { -0.5 };
+    let k = (kf + half) as i32;
     let kf = k as f32;
     let r = ((x - kf * PIO2_HI) - kf * PIO2_MID) - kf * PIO2_LO;
     let z = r * r;
