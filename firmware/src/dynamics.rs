@@ -180,15 +180,23 @@ impl<const N: usize> RigidBodyModel<N> {
     /// Joint torques [N*m] for positions [rad], speeds [rad/s], accelerations [rad/s^2].
     /// Fixed operation count: two passes over `N` joints, no data-dependent loops.
     pub fn torques(&self, q: &[f32; N], qd: &[f32; N], qdd: &[f32; N]) -> [f32; N] {
-        let mut rot = [[[0.0f32; 3]; 3]; N];
-        let mut w = [[0.0f32; 3]; N];
-        let mut wd = [[0.0f32; 3]; N];
-        let mut acc = [[0.0f32; 3]; N];
+        /// One link of the forward recursion, in its own frame.
+        #[derive(Clone, Copy)]
+        struct Link {
+            rot: [[f32; 3]; 3],
+            w: V3,
+            wd: V3,
+            acc: V3,
+        }
+        // Forward recursion: each link's rotation, angular velocity and acceleration
+        // and linear acceleration, in its own frame. `None` until written (setting the
+        // tags is cheaper than zeroing 72 floats per 6 links that are all overwritten).
+        let mut links: [Option<Link>; N] = [None; N];
         let mut w_p: V3 = [0.0; 3];
         let mut wd_p: V3 = [0.0; 3];
         let g = self.gravity_m_s2;
         let mut acc_p: V3 = [-g[0], -g[1], -g[2]];
-        for i in 0..N {
+        for (i, link) in links.iter_mut().enumerate() {
             let j = &self.joints[i];
             let r = joint_rotation(&j.origin_rotation, &j.axis, math::sin_cos(q[i]));
             let p = &j.origin_translation_m;
@@ -199,16 +207,18 @@ impl<const N: usize> RigidBodyModel<N> {
             );
             let w_in = mul_t(&r, &w_p);
             let qa = scale(&j.axis, qd[i]);
-            w[i] = add(&w_in, &qa);
-            wd[i] = add(
+            w_p = add(&w_in, &qa);
+            wd_p = add(
                 &add(&mul_t(&r, &wd_p), &cross(&w_in, &qa)),
                 &scale(&j.axis, qdd[i]),
             );
-            acc[i] = mul_t(&r, &a_p);
-            rot[i] = r;
-            w_p = w[i];
-            wd_p = wd[i];
-            acc_p = acc[i];
+            acc_p = mul_t(&r, &a_p);
+            *link = Some(Link {
+                rot: r,
+                w: w_p,
+                wd: wd_p,
+                acc: acc_p,
+            });
         }
         let mut tau = [0.0f32; N];
         let mut f_c: V3 = [0.0; 3];
@@ -217,19 +227,19 @@ impl<const N: usize> RigidBodyModel<N> {
             let j = &self.joints[k];
             let ph = &j.inertial;
             let h = [ph[1], ph[2], ph[3]];
+            // Every link was written by the forward recursion.
+            let Some(Link { w, wd, acc, .. }) = &links[k] else {
+                continue;
+            };
             let mut f = add(
-                &add(&scale(&acc[k], ph[0]), &cross(&wd[k], &h)),
-                &cross(&w[k], &cross(&w[k], &h)),
+                &add(&scale(acc, ph[0]), &cross(wd, &h)),
+                &cross(w, &cross(w, &h)),
             );
             let mut n = add(
-                &add(
-                    &inertia_mul(ph, &wd[k]),
-                    &cross(&w[k], &inertia_mul(ph, &w[k])),
-                ),
-                &cross(&h, &acc[k]),
+                &add(&inertia_mul(ph, wd), &cross(w, &inertia_mul(ph, w))),
+                &cross(&h, acc),
             );
-            if k + 1 < N {
-                let r = &rot[k + 1];
+            if let Some(Link { rot: r, .. }) = links.get(k + 1).and_then(Option::as_ref) {
                 let rf = mul(r, &f_c);
                 f = add(&f, &rf);
                 n = add(

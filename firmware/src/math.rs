@@ -58,6 +58,65 @@ fn exp_nonpositive(y: f32) -> f32 {
     p * f32::from_bits(((127 - k) as u32) << 23)
 }
 
+/// [`exp_nonpositive`] of four values at once: lane for lane the same operations in
+/// the same order (the same bits), written one operation at a time across the four
+/// lanes, which gives the compiler four independent chains to interleave (on the
+/// Cortex-M4 FPU a result read by the next instruction stalls a cycle).
+#[inline(always)]
+fn exp_nonpositive4(y: [f32; 4]) -> [f32; 4] {
+    let lanes = |f: &dyn Fn(usize) -> f32| [f(0), f(1), f(2), f(3)];
+    let y = y.map(|v| if v < -87.0 { -87.0 } else { v });
+    let u = lanes(&|l| y[l] * -core::f32::consts::LOG2_E);
+    let u = lanes(&|l| u[l] + 0.5);
+    let k = u.map(|v| v as i32);
+    let kf = k.map(|v| v as f32);
+    let hi = lanes(&|l| kf[l] * LN2_HI);
+    let lo = lanes(&|l| kf[l] * LN2_LO);
+    let r = lanes(&|l| y[l] + hi[l]);
+    let r = lanes(&|l| r[l] + lo[l]);
+    let z = lanes(&|l| r[l] * r[l]);
+    let mut p = lanes(&|l| EXP_P0 * r[l]);
+    for c in [EXP_P1, EXP_P2, EXP_P3, EXP_P4] {
+        p = lanes(&|l| p[l] + c);
+        p = lanes(&|l| p[l] * r[l]);
+    }
+    let p = lanes(&|l| p[l] + EXP_P5);
+    let p = lanes(&|l| p[l] * z[l]);
+    let p = lanes(&|l| p[l] + r[l]);
+    let p = lanes(&|l| p[l] + 1.0);
+    [0, 1, 2, 3].map(|l| p[l] * f32::from_bits(((127 - k[l]) as u32) << 23))
+}
+
+/// The four gate activations of one LSTM cell, `[sigmoid(i), sigmoid(f), tanh(g),
+/// sigmoid(o)]`: bit for bit [`sigmoid_fast`] and [`tanh_fast`], with the four
+/// exponentials computed side by side ([`exp_nonpositive4`]).
+#[inline(always)]
+pub fn lstm_gates_fast(x: [f32; 4]) -> [f32; 4] {
+    let a = x.map(f32::abs);
+    let a2 = if a[2] > 9.0 { 9.0 } else { a[2] };
+    let e = exp_nonpositive4([-a[0], -a[1], -2.0 * a2, -a[3]]);
+    let sig = |l: usize| {
+        let num = if x[l] >= 0.0 { 1.0 } else { e[l] };
+        num / (1.0 + e[l])
+    };
+    let t = (1.0 - e[2]) / (1.0 + e[2]);
+    [sig(0), sig(1), if x[2] < 0.0 { -t } else { t }, sig(3)]
+}
+
+/// [`tanh_fast`] of four values, bit for bit, the exponentials side by side.
+#[inline(always)]
+pub fn tanh_fast4(x: [f32; 4]) -> [f32; 4] {
+    let a = x.map(|v| {
+        let a = v.abs();
+        if a > 9.0 { 9.0 } else { a }
+    });
+    let e = exp_nonpositive4(a.map(|v| -2.0 * v));
+    [0, 1, 2, 3].map(|l| {
+        let t = (1.0 - e[l]) / (1.0 + e[l]);
+        if x[l] < 0.0 { -t } else { t }
+    })
+}
+
 /// Logistic sigmoid for the f32 kernels (`nn::kernels::F32Lstm`): `1 / (1 + e^-x)` for
 /// x >= 0, `e^x / (1 + e^x)` below, with an f32-only e^-|x| (Cephes polynomial, no
 /// special cases beyond the clamp) and one division: about half the estimated
@@ -146,21 +205,24 @@ pub fn cos(x: f32) -> f32 {
 /// error <= 1.2e-7 (measured 1.11e-7, about 2 ulp of values near 1) for |x| <= 2^12 rad.
 #[inline]
 pub fn sin_cos(x: f32) -> (f32, f32) {
-    if !x.is_finite() {
-        return (f32::NAN, f32::NAN);
-    }
-    let x = if x.abs() > SIN_COS_REDUCTION_LIMIT_RAD {
+    // |x| as its bit pattern: non-negative floats order as their bits, so the range
+    // check is one integer compare, and NaN and the infinities are beyond it too.
+    let abs_bits = x.to_bits() & 0x7fff_ffff;
+    let x = if abs_bits > SIN_COS_REDUCTION_LIMIT_RAD.to_bits() {
+        if abs_bits >= f32::INFINITY.to_bits() {
+            return (f32::NAN, f32::NAN);
+        }
         libm::fmodf(x, TWO_PI)
     } else {
         x
     };
     let kf = x * TWO_OVER_PI;
-    // Round half away from zero; |kf| <= 2608 so the conversion cannot saturate.
-    let k = if kf >= 0.0 {
-        (kf + 0.5) as i32
-    } else {
-        (kf - 0.5) as i32
-    };
+    // Round half away from zero (kf + 0.5 or kf - 0.5, written as one add of the signed
+    // half: the same bits, one conversion); |kf| <= 2608 so it cannot saturate. kf has
+    // the sign of x (or is -0.0 for a tiny negative x, where either half gives k = 0),
+    // so the half is chosen from x, which is ready earlier.
+    let half = if x >= 0.0 { 0.5 } else { -0.5 };
+    let k = (kf + half) as i32;
     let kf = k as f32;
     let r = ((x - kf * PIO2_HI) - kf * PIO2_MID) - kf * PIO2_LO;
     let z = r * r;
@@ -208,6 +270,59 @@ mod tests {
         assert_eq!(sigmoid_fast(200.0), 1.0);
         assert!(sigmoid_fast(-200.0) >= 0.0 && sigmoid_fast(-200.0) < 1e-37);
         assert!(sigmoid_fast(f32::NAN).is_nan() && tanh_fast(f32::NAN).is_nan());
+    }
+
+    #[test]
+    fn four_lane_activations_are_bit_for_bit_the_scalar_ones() {
+        let mut seed = 0x2545_f491u32;
+        let mut next = || {
+            seed ^= seed << 13;
+            seed ^= seed >> 17;
+            seed ^= seed << 5;
+            // Mostly [-24, 24], some raw bit patterns (huge, tiny, NaN, infinities).
+            if seed.is_multiple_of(8) {
+                f32::from_bits(seed.rotate_left(7))
+            } else {
+                (seed as f32 / u32::MAX as f32 - 0.5) * 48.0
+            }
+        };
+        let special = [
+            0.0f32,
+            -0.0,
+            9.0,
+            -9.0,
+            87.0,
+            -87.0,
+            1e-30,
+            f32::NAN,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+        ];
+        let same = |a: f32, b: f32| a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan());
+        for n in 0..200_000 {
+            let x: [f32; 4] = if n < special.len() {
+                [special[n]; 4]
+            } else {
+                [next(), next(), next(), next()]
+            };
+            let g = lstm_gates_fast(x);
+            let want = [
+                sigmoid_fast(x[0]),
+                sigmoid_fast(x[1]),
+                tanh_fast(x[2]),
+                sigmoid_fast(x[3]),
+            ];
+            let t = tanh_fast4(x);
+            for l in 0..4 {
+                assert!(
+                    same(g[l], want[l]),
+                    "gates {x:?} lane {l}: {} vs {}",
+                    g[l],
+                    want[l]
+                );
+                assert!(same(t[l], tanh_fast(x[l])), "tanh {x:?} lane {l}");
+            }
+        }
     }
 
     #[test]

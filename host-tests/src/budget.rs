@@ -160,6 +160,22 @@ pub struct WorkloadCost {
     pub stack_bytes: u64,
     /// Per function (self cost), most cycles first.
     pub functions: Vec<FunctionCost>,
+    /// Per instruction of the worst STM32G474 tick, in address order (`--per-instruction`).
+    #[serde(skip)]
+    pub instructions: Vec<InstructionCost>,
+}
+
+/// One instruction's share of a tick: how often it ran and what it cost.
+#[derive(Clone, Debug)]
+pub struct InstructionCost {
+    /// Address (Thumb bit clear).
+    pub addr: u32,
+    /// The disassembled instruction.
+    pub text: String,
+    /// The function it belongs to.
+    pub function: String,
+    /// Executions and estimated cycles (zero wait, G474) in the tick.
+    pub cost: trace::Cost,
 }
 
 /// Everything measured, before budgets are applied.
@@ -344,6 +360,19 @@ pub fn estimate_workloads(
             icount_instructions: w.icount_instructions_per_tick(bench.ticks),
             stack_bytes: w.stack_bytes,
             functions,
+            instructions: worst
+                .per_address
+                .iter()
+                .map(|(&addr, &cost)| InstructionCost {
+                    addr,
+                    text: code
+                        .at(addr)
+                        .map_or_else(String::new, |i| format!("{} {}", i.mnemonic, i.operands)),
+                    function: elf::function_at(&fns, addr)
+                        .map_or_else(String::new, |f| f.name.clone()),
+                    cost,
+                })
+                .collect(),
         });
     }
     Ok((out, indirect))
@@ -724,6 +753,7 @@ mod tests {
                 icount_instructions: 1,
                 stack_bytes: 64,
                 functions: vec![],
+                instructions: vec![],
             }],
             traced_whole_text: false,
         }

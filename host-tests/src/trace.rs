@@ -125,6 +125,8 @@ pub struct TickTrace {
     pub stalls: Stalls,
     /// Per function (self cost), by demangled name.
     pub per_function: BTreeMap<String, Cost>,
+    /// Per executed address (all executions of it in this call).
+    pub per_address: BTreeMap<u32, Cost>,
 }
 
 /// The executed instructions in order, each with its data accesses.
@@ -249,6 +251,10 @@ pub fn split_ticks(
         c.instructions += 1;
         c.cycles += cycles;
         c.chip_cycles += chip_cycles;
+        let a = tick.per_address.entry(pc).or_default();
+        a.instructions += 1;
+        a.cycles += cycles;
+        a.chip_cycles += chip_cycles;
         match class.flow {
             Flow::Call if taken => *depth += 1,
             Flow::Return if taken => {

@@ -603,13 +603,8 @@ impl F32View<'_> {
         dsp::matvec4_f32(e4, self.w_in, xn);
         let linear = self.input_activation.is_linear();
         for (e, b) in e4.iter_mut().zip(self.b_in) {
-            for (v, bb) in e.iter_mut().zip(b) {
-                *v = if linear {
-                    *v + bb
-                } else {
-                    math::tanh_fast(*v + bb)
-                };
-            }
+            let v = [e[0] + b[0], e[1] + b[1], e[2] + b[2], e[3] + b[3]];
+            *e = if linear { v } else { math::tanh_fast4(v) };
         }
         // LSTM gates: the whole layer in one kernel call, then the cells.
         let z_in: &[f32] = z;
@@ -618,14 +613,25 @@ impl F32View<'_> {
             self.w_gates,
             z_in.get(..e_len + d.hidden).unwrap_or(z_in),
         );
+        // The cells: first each cell's gates and new c (`h_new` holds o for now), then
+        // h = o tanh(c) four cells at a time (the same bits as one at a time).
         let rows = acc.iter().zip(self.b_gates);
         for (((acc, b), cj), hn) in rows.zip(c.iter_mut()).zip(h_new.iter_mut()) {
-            let i = math::sigmoid_fast(acc[0] + b[0]);
-            let f = math::sigmoid_fast(acc[1] + b[1]);
-            let g = math::tanh_fast(acc[2] + b[2]);
-            let o = math::sigmoid_fast(acc[3] + b[3]);
+            let [i, f, g, o] =
+                math::lstm_gates_fast([acc[0] + b[0], acc[1] + b[1], acc[2] + b[2], acc[3] + b[3]]);
             *cj = f * *cj + i * g;
-            *hn = o * math::tanh_fast(*cj);
+            *hn = o;
+        }
+        let (c4, c_rest) = c.as_chunks::<4>();
+        let (h4, h_rest) = h_new.as_chunks_mut::<4>();
+        for (cs, hs) in c4.iter().zip(h4.iter_mut()) {
+            let t = math::tanh_fast4(*cs);
+            for (h, t) in hs.iter_mut().zip(t) {
+                *h *= t;
+            }
+        }
+        for (cj, hn) in c_rest.iter().zip(h_rest.iter_mut()) {
+            *hn *= math::tanh_fast(*cj);
         }
         if let Some(hz) = z.get_mut(e_len..) {
             for (dst, src) in hz.iter_mut().zip(h_new.iter()) {

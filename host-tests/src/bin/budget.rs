@@ -5,7 +5,9 @@
 //!
 //! `cargo run -p host-tests --bin budget [-- --json] [--budgets FILE]
 //! [--opt-level 2|3|s|z] [--pipeline-refill P] [--wait-states N] [--single-bank]
-//! [--no-fpu-stall]`; exits 1 when a budget is exceeded.
+//! [--no-fpu-stall] [--per-instruction WORKLOAD]`; exits 1 when a budget is exceeded.
+//! `--per-instruction WORKLOAD` prints that workload's worst STM32G474 tick per
+//! instruction (tab-separated) instead of the table.
 use anyhow::{Context, Result, bail};
 use host_tests::budget::{self, Budgets, Options};
 use std::path::PathBuf;
@@ -24,6 +26,7 @@ fn main() -> std::process::ExitCode {
 fn run() -> Result<bool> {
     let mut json = false;
     let mut json_file = None;
+    let mut per_instruction = None;
     let mut file = budget::default_budget_file();
     let mut opts = Options::default();
     let mut args = std::env::args().skip(1);
@@ -38,10 +41,12 @@ fn run() -> Result<bool> {
             "--wait-states" => opts.chip.flash.wait_states = value()?.parse()?,
             "--single-bank" => opts.chip.flash.read_bytes = 16,
             "--no-fpu-stall" => opts.chip.fpu_result_stall = false,
+            "--per-instruction" => per_instruction = Some(value()?),
             "-h" | "--help" => {
                 println!(
                     "usage: budget [--json] [--json-file FILE] [--budgets FILE] [--opt-level 2|3|s|z] \
-                     [--pipeline-refill P] [--wait-states N] [--single-bank] [--no-fpu-stall]"
+                     [--pipeline-refill P] [--wait-states N] [--single-bank] [--no-fpu-stall] \
+                     [--per-instruction WORKLOAD]"
                 );
                 return Ok(true);
             }
@@ -54,7 +59,15 @@ fn run() -> Result<bool> {
         std::fs::write(path, report.json()?)
             .with_context(|| format!("writing {}", path.display()))?;
     }
-    if json {
+    if let Some(name) = &per_instruction {
+        let w = report
+            .measurement
+            .workloads
+            .iter()
+            .find(|w| &w.name == name)
+            .with_context(|| format!("--per-instruction: no workload `{name}`"))?;
+        print_instructions(w);
+    } else if json {
         println!("{}", report.json()?);
     } else {
         print!("{}", report.markdown());
@@ -63,4 +76,26 @@ fn run() -> Result<bool> {
         eprintln!("over budget: {v}");
     }
     Ok(report.violations.is_empty())
+}
+
+/// The worst STM32G474 tick of `w`, per instruction in address order: executions,
+/// estimated cycles at zero wait and on the G474, and the difference (stalls).
+fn print_instructions(w: &budget::WorkloadCost) {
+    println!(
+        "# {}: worst STM32G474 tick per instruction (estimated cycles)",
+        w.name
+    );
+    println!("address\texecuted\tzero-wait\tG474\tstall\tinstruction\tfunction");
+    for i in &w.instructions {
+        println!(
+            "{:#010x}\t{}\t{}\t{}\t{}\t{}\t{}",
+            i.addr,
+            i.cost.instructions,
+            i.cost.cycles,
+            i.cost.chip_cycles,
+            i.cost.chip_cycles - i.cost.cycles,
+            i.text,
+            i.function
+        );
+    }
 }
