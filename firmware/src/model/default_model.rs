@@ -8,7 +8,7 @@ use firmware::nn::format::{FeaturePreset, I8Weights, I16Weights, InputActivation
 #[allow(unused_imports)]
 use firmware::nn::kernels::{F32Lstm, F32State, LinearInput, QuantLstm, TanhInput};
 /// SHA-256 (first 8 bytes) of everything below this line.
-pub const CONTENT_HASH: u64 = 0x8fe44151c44ffc44;
+pub const CONTENT_HASH: u64 = 0x3ec2548837bc5c2c;
 /// Layout version of this file (`fw_export::SCHEMA_VERSION`).
 pub const SCHEMA_VERSION: u32 = 7;
 /// Numeric precision of the network.
@@ -45,7 +45,7 @@ pub const JOINT_PROFILES: [firmware::control::JointProfile; 3] = [
         watchdog_ticks: 3, max_message_age_ticks: 3, bus_clock: firmware::control::BusClock::FreeRunning { max_rate_error_ppm: 20000 },
         max_torque_nm: 120.0, max_torque_rate_nm_s: 2000.0, max_lstm_correction_nm: 30.0, warmup_ticks: 10, lstm_retry_ticks: 50,
         feedforward_max_current_a: 12.0, bus_baud: 2000000,
-        adaptation: firmware::adaptation::AdaptationConfig { time_constant_s: 2.0, max_correction_nm: 10.0 },
+        adaptation: firmware::adaptation::AdaptationConfig { time_constant_s: 0.0, max_correction_nm: 10.0 },
     },
     firmware::control::JointProfile {
         motor: firmware::control::MotorParameters { pole_pairs: 7, phase_resistance_ohm: 0.3, phase_inductance_h: 0.0003, flux_linkage_wb: 0.01 },
@@ -56,7 +56,7 @@ pub const JOINT_PROFILES: [firmware::control::JointProfile; 3] = [
         watchdog_ticks: 3, max_message_age_ticks: 3, bus_clock: firmware::control::BusClock::FreeRunning { max_rate_error_ppm: 20000 },
         max_torque_nm: 120.0, max_torque_rate_nm_s: 2000.0, max_lstm_correction_nm: 30.0, warmup_ticks: 10, lstm_retry_ticks: 50,
         feedforward_max_current_a: 12.0, bus_baud: 2000000,
-        adaptation: firmware::adaptation::AdaptationConfig { time_constant_s: 2.0, max_correction_nm: 10.0 },
+        adaptation: firmware::adaptation::AdaptationConfig { time_constant_s: 0.0, max_correction_nm: 10.0 },
     },
     firmware::control::JointProfile {
         motor: firmware::control::MotorParameters { pole_pairs: 7, phase_resistance_ohm: 0.3, phase_inductance_h: 0.0003, flux_linkage_wb: 0.01 },
@@ -67,7 +67,7 @@ pub const JOINT_PROFILES: [firmware::control::JointProfile; 3] = [
         watchdog_ticks: 3, max_message_age_ticks: 3, bus_clock: firmware::control::BusClock::FreeRunning { max_rate_error_ppm: 20000 },
         max_torque_nm: 120.0, max_torque_rate_nm_s: 2000.0, max_lstm_correction_nm: 30.0, warmup_ticks: 10, lstm_retry_ticks: 50,
         feedforward_max_current_a: 12.0, bus_baud: 2000000,
-        adaptation: firmware::adaptation::AdaptationConfig { time_constant_s: 2.0, max_correction_nm: 10.0 },
+        adaptation: firmware::adaptation::AdaptationConfig { time_constant_s: 0.0, max_correction_nm: 10.0 },
     },
 ];
 /// The network's integer format: `int16` weights, the input activation and the activation-index shifts of its power-of-two scales.
