@@ -46,6 +46,10 @@ pub struct SilArgs {
     /// Sensor-noise seed.
     #[arg(long, default_value_t = 7)]
     pub seed: u64,
+    /// Wrist SIL: every board's friction adaptation with this forgetting time constant
+    /// [s] instead of its joint profile's (0: off).
+    #[arg(long)]
+    pub adapt_time_constant_s: Option<f32>,
     /// Also write the table as JSON (atomically).
     #[arg(long)]
     pub json: Option<std::path::PathBuf>,
@@ -72,6 +76,15 @@ pub fn run(a: &SilArgs) -> anyhow::Result<()> {
         J,
     )?;
     let mut setup = WristSetup::new(robot, plant, traj, a.compensator_hz, a.seed)?;
+    if let Some(t) = a.adapt_time_constant_s {
+        ensure!(
+            t.is_finite() && t >= 0.0,
+            "--adapt-time-constant-s must be finite and >= 0 (0: off), not {t}"
+        );
+        for p in &mut setup.profiles {
+            p.adaptation.time_constant_s = t;
+        }
+    }
     if let Some(s) = a.seconds {
         ensure!(s.is_finite() && s > 0.0, "--seconds must be > 0");
         setup.duration_s = s.min(setup.duration_s);
