@@ -164,6 +164,8 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Sil { wrist } => {
             if wrist.model.is_some() {
                 crate::cmd::sil::run(&wrist)
+            } else if wrist.adapt_time_constant_s.is_some() {
+                anyhow::bail!("--adapt-time-constant-s is for the wrist SIL: give --model too")
             } else {
                 run_sil(wrist.seconds.unwrap_or(5.0), wrist.seed)
             }

@@ -347,6 +347,18 @@ fn sil_seconds_of_1e308_is_an_error_naming_the_range() {
 }
 
 #[test]
+fn sil_adaptation_without_a_wrist_model_is_an_error() {
+    let e = format!(
+        "{:#}",
+        cli(&["sil", "--adapt-time-constant-s", "2"]).expect_err("no --model")
+    );
+    assert!(
+        e.contains("--adapt-time-constant-s") && e.contains("--model"),
+        "{e}"
+    );
+}
+
+#[test]
 fn a_resample_rate_of_1e12_is_an_error_naming_the_limit() {
     let dir = tempfile::tempdir().unwrap();
     let mut csv = String::new();
