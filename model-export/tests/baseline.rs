@@ -398,6 +398,23 @@ fn edit_column(from: &Path, to: &Path, column: &str, edit: impl Fn(usize, &str) 
     std::fs::write(to, lines.join("\n") + "\n").unwrap();
 }
 
+/// `evaluate` of the feedforward network `model` on joints 1 and 3 of `test`, report to
+/// `report`.
+fn evaluation_args(model: &Path, test: &Path, report: &Path) -> Vec<OsString> {
+    vec![
+        "--model".into(),
+        model.into(),
+        "--data".into(),
+        test.into(),
+        "--preset".into(),
+        "feedforward".into(),
+        "--joints".into(),
+        "1,3".into(),
+        "--report".into(),
+        report.into(),
+    ]
+}
+
 fn evaluate(args: &[OsString]) -> std::process::Output {
     Command::new(env!("CARGO_BIN_EXE_model-export"))
         .arg("evaluate")
@@ -412,20 +429,7 @@ fn evaluate_reports_the_baseline_and_refuses_bad_baseline_data() {
     let (paths, model, test) = evaluation_files(dir.path(), 400);
     let report = dir.path().join("eval.json");
     let base = format!("{},{}", paths[0].display(), paths[1].display());
-    let common = |report: &Path| -> Vec<OsString> {
-        vec![
-            "--model".into(),
-            model.clone().into(),
-            "--data".into(),
-            test.clone().into(),
-            "--preset".into(),
-            "feedforward".into(),
-            "--joints".into(),
-            "1,3".into(),
-            "--report".into(),
-            report.to_path_buf().into(),
-        ]
-    };
+    let common = |report: &Path| evaluation_args(&model, &test, report);
 
     // Without the flag: no baseline column, nulls in the report.
     let plain = dir.path().join("plain.json");
@@ -513,20 +517,8 @@ fn evaluate_runs_the_drive_adaptation_and_scores_against_the_low_passed_torque()
     });
     let base = format!("{},{}", paths[0].display(), paths[1].display());
     let run = |report: &Path, extra: &[&str]| {
-        let mut args: Vec<OsString> = vec![
-            "--model".into(),
-            model.clone().into(),
-            "--data".into(),
-            test.clone().into(),
-            "--preset".into(),
-            "feedforward".into(),
-            "--joints".into(),
-            "1,3".into(),
-            "--baseline-data".into(),
-            base.clone().into(),
-            "--report".into(),
-            report.to_path_buf().into(),
-        ];
+        let mut args = evaluation_args(&model, &test, report);
+        args.extend(["--baseline-data".into(), base.clone().into()]);
         args.extend(extra.iter().map(OsString::from));
         evaluate(&args)
     };

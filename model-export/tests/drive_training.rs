@@ -46,6 +46,17 @@ fn drive_run(path: &Path, amplitude_rad: f64, rate_rad_s: f64, seed: u64) {
     std::fs::write(path, csv).unwrap();
 }
 
+/// `n` drive datasets of joint 1 in `dir`, of growing amplitude and rate.
+fn drive_runs(dir: &Path, n: usize) -> Vec<PathBuf> {
+    (0..n)
+        .map(|k| {
+            let r = dir.join(format!("run{k}.csv"));
+            drive_run(&r, 0.5 + 0.2 * k as f64, 1.0 + 0.5 * k as f64, k as u64 + 1);
+            r
+        })
+        .collect()
+}
+
 fn path(p: &Path) -> String {
     p.display().to_string()
 }
@@ -53,12 +64,7 @@ fn path(p: &Path) -> String {
 #[test]
 fn the_linear_stage_is_the_baseline_and_a_network_that_cannot_help_fades() {
     let dir = tempfile::tempdir().unwrap();
-    let runs: Vec<PathBuf> = (0..4)
-        .map(|k| dir.path().join(format!("run{k}.csv")))
-        .collect();
-    for (k, r) in runs.iter().enumerate() {
-        drive_run(r, 0.5 + 0.2 * k as f64, 1.0 + 0.5 * k as f64, k as u64 + 1);
-    }
+    let runs = drive_runs(dir.path(), 4);
     let (train, val) = (&runs[..3], &runs[3]);
     let train_list = train.iter().map(|p| path(p)).collect::<Vec<_>>().join(",");
     let (net, report) = (
@@ -133,14 +139,9 @@ fn the_linear_stage_is_the_baseline_and_a_network_that_cannot_help_fades() {
 }
 
 #[test]
-fn the_network_can_learn_what_the_drive_adaptation_leaves() {
+fn training_on_what_the_drive_adaptation_leaves_is_recorded_and_only_for_the_drive_preset() {
     let dir = tempfile::tempdir().unwrap();
-    let runs: Vec<PathBuf> = (0..3)
-        .map(|k| dir.path().join(format!("run{k}.csv")))
-        .collect();
-    for (k, r) in runs.iter().enumerate() {
-        drive_run(r, 0.5 + 0.2 * k as f64, 1.0 + 0.5 * k as f64, k as u64 + 1);
-    }
+    let runs = drive_runs(dir.path(), 3);
     let (net, report) = (
         dir.path().join("drive.safetensors"),
         dir.path().join("train.json"),
