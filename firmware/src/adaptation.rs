@@ -99,13 +99,13 @@ impl FrictionAdaptation {
         self.max_nm > 0.0
     }
 
-    /// The adapted levels [N*m]: offset, Coulomb, held at rest.
+    /// The adapted levels (N*m): offset, Coulomb, held at rest.
     pub fn levels_nm(&self) -> [f32; ADAPTED_LEVELS] {
         self.levels_nm
     }
 
     /// One tick: learn from `measured_nm`, the torque measured since the previous tick
-    /// (against that tick's prediction), then return this tick's correction [N*m] to
+    /// (against that tick's prediction), then return this tick's correction (N*m) to
     /// add to `base_nm`, the other stages' prediction for this tick.
     pub fn step(&mut self, x: [f32; ADAPTED_LEVELS], base_nm: f32, measured_nm: f32) -> f32 {
         if !self.is_on() {

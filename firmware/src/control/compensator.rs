@@ -2,7 +2,9 @@
 //! from the identified dynamics model and (optionally) the LSTM behind the
 //! [`TorquePredictor`] trait, with a fallback chain LSTM -> model only -> zero,
 //! a watchdog on the other joints' states, rate and magnitude limits, and a
-//! warm-up after every reset. The result is a q-current held until the next tick.
+//! warm-up after every reset; optionally the online friction adaptation
+//! ([`crate::adaptation`]) after both stages. The result is a q-current held until
+//! the next tick.
 
 use super::faults::FaultFlags;
 use super::message::{JointState, JointStateMessage, SEQUENCE_WINDOW, StateLimits};
@@ -236,7 +238,7 @@ impl<const J: usize, M: TorquePredictor<J>, L: TorquePredictor<J>> Compensator<J
         self
     }
 
-    /// The adaptation's learned levels [N*m]: offset, Coulomb, held at rest (zero when
+    /// The adaptation's learned levels (N*m): offset, Coulomb, held at rest (zero when
     /// it is off).
     pub fn adapted_levels_nm(&self) -> [f32; ADAPTED_LEVELS] {
         self.adaptation.levels_nm()
