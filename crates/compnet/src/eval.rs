@@ -32,9 +32,20 @@ impl TargetEval {
 }
 
 /// Streams `m` from the zero state over `seq` and compares with the baselines.
-#[allow(clippy::needless_range_loop)] // three parallel per-step tables indexed alike
 pub fn evaluate(m: &LstmModel, seq: &Sequence) -> Result<Vec<TargetEval>> {
-    let pred = m.stream(&seq.inputs)?;
+    evaluate_streamed(m, seq, &m.stream(&seq.inputs)?)
+}
+
+/// [`evaluate`] with `m`'s predictions `pred` over `seq` already streamed.
+#[allow(clippy::needless_range_loop)] // three parallel per-step tables indexed alike
+pub fn evaluate_streamed(
+    m: &LstmModel,
+    seq: &Sequence,
+    pred: &[Vec<f32>],
+) -> Result<Vec<TargetEval>> {
+    if pred.len() != seq.len() {
+        bail!("{} predictions for {} steps", pred.len(), seq.len());
+    }
     let n = seq.len().max(1) as f64;
     let mut out = Vec::new();
     for k in 0..m.dims.output {
@@ -119,20 +130,22 @@ impl AdaptedRms {
     }
 }
 
-/// Per output of `spec`: the model alone, the baseline and the network `m`, each followed
-/// by the online adaptation `config` over `table` (which learns from the measured torque
-/// as logged), scored on the sequence's rows against `scored`'s `tau_meas` (the same
-/// table, or [`adaptation::low_passed`]); `None` for outputs that are not a joint's
-/// measured torque.
+/// Per output of `spec`: the model alone, the baseline and the network's predictions
+/// `pred` over `seq` (as [`evaluate_streamed`] takes them), each followed by the online
+/// adaptation `config` over `table` (which learns from the measured torque as logged),
+/// scored on the sequence's rows against `scored`'s `tau_meas` (the same table, or
+/// [`adaptation::low_passed`]); `None` for outputs that are not a joint's measured torque.
 pub fn adapted_rms(
-    m: &LstmModel,
+    pred: &[Vec<f32>],
     spec: &FeatureSpec,
     (table, scored): (&Table, &Table),
     seq: &Sequence,
     baseline: Option<&LinearBaseline>,
     config: AdaptationConfig,
 ) -> Result<Vec<Option<AdaptedRms>>> {
-    let pred = m.stream(&seq.inputs)?;
+    if pred.len() != seq.len() {
+        bail!("{} predictions for {} steps", pred.len(), seq.len());
+    }
     let baseline_pred = baseline.map(|b| b.predict(table)).transpose()?;
     let rows = table.len();
     let mut out = Vec::new();

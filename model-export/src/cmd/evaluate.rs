@@ -112,14 +112,15 @@ pub fn run(a: EvaluateArgs) -> Result<()> {
         .zip(tables.iter().zip(&scored_tables))
         .enumerate()
     {
-        let rows = eval::evaluate(&model, &s)?;
+        let pred = model.stream(&s.inputs)?;
+        let rows = eval::evaluate_streamed(&model, &s, &pred)?;
         let base_rms = match &baseline {
             Some(b) => eval::baseline_rms(&spec, scored, s.len(), b)?,
             None => vec![None; rows.len()],
         };
         let adapted = match adaptation {
             Some(cfg) => {
-                eval::adapted_rms(&model, &spec, (table, scored), &s, baseline.as_ref(), cfg)?
+                eval::adapted_rms(&pred, &spec, (table, scored), &s, baseline.as_ref(), cfg)?
             }
             None => vec![None; rows.len()],
         };
