@@ -58,59 +58,74 @@ pub fn adapt(
         .collect())
 }
 
-/// Takes out of the targets of a `drive` sequence (the residuals over the model and
-/// the linear stage, one output per joint, `outputs` joints) what the adaptation
-/// `config` at `tick_hz` would correct there, causally from the start of the sequence:
-/// the network then learns what the drive's adaptation leaves, as it will run after it.
+/// What the adaptation `config` at `tick_hz` corrects in each row of a `drive` sequence
+/// whose targets are the residuals over the model and the linear stage (one output per
+/// joint, `outputs` joints), streamed causally from the start of the sequence: per row,
+/// per output [N·m].
+pub fn drive_corrections(
+    seq: &Sequence,
+    outputs: usize,
+    config: AdaptationConfig,
+    tick_hz: f32,
+) -> Vec<Vec<f32>> {
+    let mut out = vec![vec![0.0f32; outputs]; seq.len()];
+    for k in 0..outputs {
+        let mut a = FrictionAdaptation::new(config, tick_hz);
+        let mut residual_before = f32::NAN;
+        for ((row, t), c) in seq.inputs.iter().zip(&seq.targets).zip(out.iter_mut()) {
+            let x = features::joint_drive_inputs(row, outputs, k);
+            // In residual terms the prediction is 0 and the measurement the residual.
+            c[k] = a.step(adaptation::regressors(x[2], x[5]), 0.0, residual_before);
+            residual_before = t[k];
+        }
+    }
+    out
+}
+
+/// Takes [`drive_corrections`] out of the targets of `seq`: the network then learns what
+/// the drive's adaptation leaves, as it will run after it.
 pub fn subtract_from_drive_targets(
     seq: &mut Sequence,
     outputs: usize,
     config: AdaptationConfig,
     tick_hz: f32,
 ) {
-    for k in 0..outputs {
-        let mut a = FrictionAdaptation::new(config, tick_hz);
-        let mut residual_before = f32::NAN;
-        for (row, t) in seq.inputs.iter().zip(seq.targets.iter_mut()) {
-            let x = features::joint_drive_inputs(row, outputs, k);
-            // In residual terms the prediction is 0 and the measurement the residual.
-            let c = a.step(adaptation::regressors(x[2], x[5]), 0.0, residual_before);
-            residual_before = t[k];
-            t[k] -= c;
+    let corrections = drive_corrections(seq, outputs, config, tick_hz);
+    subtract(&mut seq.targets, &corrections);
+}
+
+fn subtract(targets: &mut [Vec<f32>], corrections: &[Vec<f32>]) {
+    for (t, c) in targets.iter_mut().zip(corrections) {
+        for (t, c) in t.iter_mut().zip(c) {
+            *t -= c;
         }
     }
 }
 
 /// The `drive` preset's linear stage fitted jointly with the adaptation `config`: the
-/// least-squares fit ([`train::fit_linear_stage`]), then once more on the targets less
-/// what the adaptation corrects over the first fit's residual (each sequence at its tick
-/// rate). Friction that drifts from run to run then moves the adapted levels, not the
-/// static coefficients.
+/// least-squares fit ([`train::fit_linear_stage`]) on `runs`, then once more on their
+/// targets less what the adaptation corrects over the first fit's residual (run `i` at
+/// tick rate `rates_hz[i]`). Friction that drifts from run to run then moves the
+/// adapted levels, not the static coefficients.
 pub fn fit_linear_stage_under_adaptation(
-    runs: &[(&Sequence, f32)],
+    runs: &[Sequence],
+    rates_hz: &[f32],
     outputs: usize,
     config: AdaptationConfig,
 ) -> Result<Vec<f32>> {
-    let plain: Vec<Sequence> = runs.iter().map(|(s, _)| (*s).clone()).collect();
-    let first = train::fit_linear_stage(&plain, outputs)?;
+    if runs.len() != rates_hz.len() {
+        bail!("{} runs but {} tick rates", runs.len(), rates_hz.len());
+    }
+    let first = train::fit_linear_stage(runs, outputs)?;
     let without_drift: Vec<Sequence> = runs
         .iter()
-        .map(|&(s, hz)| {
+        .zip(rates_hz)
+        .map(|(s, &hz)| {
             let mut residual = s.clone();
             train::subtract_linear_stage(&first, std::slice::from_mut(&mut residual));
-            let mut left = residual.clone();
-            subtract_from_drive_targets(&mut left, outputs, config, hz);
+            let corrections = drive_corrections(&residual, outputs, config, hz);
             let mut out = s.clone();
-            for ((t, r), l) in out
-                .targets
-                .iter_mut()
-                .zip(&residual.targets)
-                .zip(&left.targets)
-            {
-                for ((t, r), l) in t.iter_mut().zip(r).zip(l) {
-                    *t -= r - l;
-                }
-            }
+            subtract(&mut out.targets, &corrections);
             out
         })
         .collect();

@@ -242,8 +242,12 @@ pub fn run(a: TrainArgs) -> Result<()> {
                 } else {
                     tr_hz.clone()
                 };
-                let runs: Vec<(&Sequence, f32)> = fit_on.iter().zip(rates).collect();
-                adaptation::fit_linear_stage_under_adaptation(&runs, spec.targets.len(), c)?
+                adaptation::fit_linear_stage_under_adaptation(
+                    &fit_on,
+                    &rates,
+                    spec.targets.len(),
+                    c,
+                )?
             }
             None => train::fit_linear_stage(&fit_on, spec.targets.len())?,
         };
