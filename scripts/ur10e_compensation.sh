@@ -40,11 +40,14 @@ adapt_max_nm="${ADAPT_MAX_NM:-10}"
 score_cutoff_hz="${SCORE_CUTOFF_HZ:-5}"
 epochs="${EPOCHS:-60}"
 read -r -a first_stage_args <<< "${FIRST_STAGE_ARGS:---coulomb-smoothing-rad-s 0.02 --friction-model extended}"
-# name preset dataset-folder: the paper's presets over the paper model (as
-# scripts/ur10e_lstm.sh), the drive-side compensator and both presets over the first stage.
-all_nets=("drive drive data" "feedforward feedforward data-paper" "paper paper data-paper"
-  "feedforward_first_stage feedforward data" "paper_first_stage paper data")
-read -r -a want_nets <<< "${NETS:-drive feedforward paper feedforward_first_stage paper_first_stage}"
+# name preset dataset-folder paper-output: the paper's presets over the paper model (as
+# scripts/ur10e_lstm.sh; `paper` in its exportable form relative to the model, which reads
+# the measured residual; `paper_next` the paper's next-step torque), the drive-side
+# compensator and both presets over the first stage.
+all_nets=("drive drive data -" "feedforward feedforward data-paper -"
+  "paper paper data-paper relative" "paper_next paper data-paper next"
+  "feedforward_first_stage feedforward data -" "paper_first_stage paper data relative")
+read -r -a want_nets <<< "${NETS:-drive feedforward paper paper_next feedforward_first_stage paper_first_stage}"
 
 target="${CARGO_TARGET_DIR:-$root/target}"
 case "$target" in /*) ;; *) target="$PWD/$target" ;; esac
@@ -117,7 +120,9 @@ train_list() { local r s=""; for r in "${train[@]}"; do s+="$1/$r.csv,"; done; e
 nets_run=()
 : > train_seconds.txt
 for spec in "${all_nets[@]}"; do
-  read -r name preset dir <<< "$spec"
+  read -r name preset dir form <<< "$spec"
+  output=()
+  [ "$form" = - ] || output=(--paper-output "$form")
   case " ${want_nets[*]} " in *" $name "*) ;; *) continue ;; esac
   nets_run+=("$name")
   echo "== $name: preset $preset on $dir/"
@@ -139,7 +144,7 @@ for spec in "${all_nets[@]}"; do
     [ "$preset" != drive ] || tag="${name}_j$g"
     start=$(date +%s.%N)
     "$ME" train --data "$(train_list "$dir")" --validation-data "$dir/$val.csv" --preset "$preset" \
-      --joints "$g" "${size[@]}" --epochs "$epochs" --lr 0.003 --seed 1 --quiet \
+      "${output[@]}" --joints "$g" "${size[@]}" --epochs "$epochs" --lr 0.003 --seed 1 --quiet \
       --out "lstm_$tag.safetensors" --loss-plot "loss_$tag.svg" --report "train_$tag.json" \
       > "train_$tag.txt"
     echo "$name $(date +%s.%N) $start" >> train_seconds.txt
@@ -153,7 +158,7 @@ for spec in "${all_nets[@]}"; do
         suffix=""
         [ "$scoring" = raw ] || suffix="_lp"
         "$ME" evaluate --model "lstm_$tag.safetensors" --data "$dir/$r.csv" --preset "$preset" \
-          --joints "$g" --baseline-data "$(train_list "$dir")" \
+          "${output[@]}" --joints "$g" --baseline-data "$(train_list "$dir")" \
           --adapt-time-constant-s "$adapt_time_constant_s" --adapt-max-nm "$adapt_max_nm" \
           "${score[@]}" --report "eval/${tag}_$r$suffix.json" > "eval/${tag}_$r$suffix.txt"
       done

@@ -255,20 +255,23 @@ fn an_increment_network_is_refused_and_writes_nothing() {
     let err = model_export::cmd::export::export(&m, &a).unwrap_err();
     let text = format!("{err:#}");
     assert!(text.contains("tau_meas_j4@+1-tau_meas_j4@0"), "{text}");
-    assert!(text.contains("--paper-output next"), "{text}");
+    assert!(text.contains("--paper-output relative"), "{text}");
     assert!(!out.exists(), "a refused export left {}", out.display());
-    // So is the form relative to the model torque.
-    m.output_names = compnet::data::FeatureSpec::paper_relative(&[4]).output_names();
-    let text = format!(
-        "{:#}",
-        model_export::cmd::export::export(&m, &a).unwrap_err()
-    );
-    assert!(text.contains("tau_meas_j4-tau_model_j4@+1"), "{text}");
-    assert!(!out.exists(), "a refused export left {}", out.display());
-    // The same network with the next-step output exports.
+    // The same network with the next-step output exports, and so does the form relative
+    // to the model torque, as its own preset.
     m.output_names = compnet::data::FeatureSpec::paper(&[4]).output_names();
     model_export::cmd::export::export(&m, &a).expect("next-step paper network exports");
     assert!(out.exists());
+    let relative = compnet::data::FeatureSpec::paper_relative(&[4]);
+    m.preset = relative.preset.clone();
+    m.input_names = relative.inputs.clone();
+    m.output_names = relative.output_names();
+    model_export::cmd::export::export(&m, &a).expect("relative paper network exports");
+    let text = std::fs::read_to_string(&out).expect("read");
+    assert!(
+        text.contains("FEATURE_PRESET: FeaturePreset = FeaturePreset::PaperRelative;"),
+        "{text}"
+    );
 }
 
 #[test]

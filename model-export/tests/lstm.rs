@@ -353,10 +353,11 @@ fn presets_align_inputs_and_targets() {
     let inc = FeatureSpec::paper_increment(&[4]);
     assert_eq!(inc.inputs, FeatureSpec::paper(&[4]).inputs);
     assert_eq!(inc.output_names(), ["tau_meas_j4@+1-tau_meas_j4@0"]);
-    use compnet::data::is_shifted_difference_name as loop_closing;
+    use compnet::data::is_increment_name as loop_closing;
     assert!(loop_closing(&inc.output_names()[0]));
     for spec in [
         FeatureSpec::paper(&[4]),
+        FeatureSpec::paper_relative(&[4]),
         FeatureSpec::feedforward(&[4]),
         FeatureSpec::drive(&[4]),
     ] {
@@ -367,11 +368,17 @@ fn presets_align_inputs_and_targets() {
     assert_eq!(p.offset[0], vec![20.0]);
     assert_eq!(p.model_only[0], vec![11.0]);
     assert_eq!(p.persistence[0], vec![Some(0.0)]);
-    // The relative form: everything relative to the model's torque at the target step.
+    // The relative form: the measured residual in, everything relative to the model's
+    // torque at the target step out.
     let rel = FeatureSpec::paper_relative(&[4]);
+    assert_eq!(rel.preset, "paper_relative");
+    assert_eq!(
+        rel.inputs,
+        ["tau_model_j4", "tau_meas_j4-tau_model_j4", "q_j4"]
+    );
     assert_eq!(rel.output_names(), ["tau_meas_j4-tau_model_j4@+1"]);
-    assert!(loop_closing(&rel.output_names()[0]));
     let p = rel.sequence(&table).unwrap();
+    assert_eq!(p.inputs[0], vec![30.0, 20.0 - 30.0, 0.0]);
     assert_eq!(p.targets[0], vec![21.0 - 31.0]);
     assert_eq!(p.offset[0], vec![31.0]);
     assert_eq!(p.model_only[0], vec![0.0]);

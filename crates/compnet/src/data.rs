@@ -7,19 +7,17 @@
 //! (N·m), `tau_model_j{j}` the identified model's torque (N·m).
 //! - `paper`: inputs `tau_model_j*`, `tau_meas_j*`, `q_j*` (all joints of one kind, then
 //!   the next kind) → target `tau_meas_j*` one step ahead; model-only prediction
-//!   `tau_model_j*` at that step; persistence baseline `tau_meas_j*` now. Two open-loop
-//!   variants keep the same inputs: the increment over the measured torque now
-//!   ([`FeatureSpec::paper_increment`]) and the residual over the model's torque at t+1
-//!   ([`FeatureSpec::paper_relative`]: a network that knows nothing returns the model).
-//!   Both lean on the measured torque through a residual path; fed forward, the applied
-//!   torque then comes back as the next feedforward, a loop that the closed-loop
-//!   simulation measured to destabilise the wrist (model-export/README.md), so the
-//!   exporter refuses them. (Predicting the
-//!   increment over the measured torque instead, a residual connection, beat persistence
-//!   on the default wrist in open loop but, fed forward, closes a unit-gain loop on the
-//!   applied torque that destabilised the closed-loop simulation: measured, see
-//!   model-export/README.md. `FeatureSpec::paper_increment`, `--paper-output increment`,
-//!   keeps that form for open-loop prediction; the exporter refuses it.)
+//!   `tau_model_j*` at that step; persistence baseline `tau_meas_j*` now.
+//! - `paper_relative` (`--paper-output relative`): the same with the measured residual
+//!   `tau_meas_j*-tau_model_j*` in place of `tau_meas_j*` → target the residual
+//!   `tau_meas_j* - tau_model_j*` one step ahead ([`FeatureSpec::paper_relative`]): the
+//!   model's torque at t+1 is added back, so a network that knows nothing returns the
+//!   model, and its inputs keep the scale of the residual, not of the joint's torque.
+//! - `paper --paper-output increment` ([`FeatureSpec::paper_increment`]): the `paper`
+//!   inputs, the next-step torque as the measured torque now plus the network's
+//!   increment (a residual connection). It beats persistence in open loop but, fed
+//!   forward, closes a unit-gain loop on the applied torque that destabilised the
+//!   closed-loop simulation (measured, crates/sil/README.md), so the exporter refuses it.
 //! - `feedforward`: inputs `tau_model_j*`, `q_j*`, `qd_j*` → target the residual
 //!   `tau_meas_j* - tau_model_j*` at the same step; model-only prediction 0.
 //! - `drive`: what the drive knows before the tick, per joint (`firmware::features`):
@@ -30,6 +28,7 @@
 //! - `custom`: `--inputs a,b,c --targets y1,y2-z2 --shift k`: a target is a column or a
 //!   difference `col-col`, taken `k` steps ahead; model-only prediction 0.
 use anyhow::{Context, Result, bail};
+use firmware::nn::format::FeaturePreset;
 use std::path::{Path, PathBuf};
 
 /// A CSV log: named columns of equal length.
@@ -103,6 +102,25 @@ impl Table {
         }
     }
 
+    /// A column by name, or the difference `a - b` of two columns for a name `a-b`
+    /// (an input such as the measured residual `tau_meas_j1-tau_model_j1`), in f32 like
+    /// the firmware.
+    pub fn input_column(&self, name: &str) -> Result<std::borrow::Cow<'_, [f32]>> {
+        if let Some((a, b)) = name
+            .split_once('-')
+            .filter(|_| !self.names.iter().any(|n| n == name))
+        {
+            let (a, b) = (self.column(a)?, self.column(b)?);
+            return Ok(a
+                .iter()
+                .zip(b)
+                .map(|(a, b)| a - b)
+                .collect::<Vec<_>>()
+                .into());
+        }
+        self.column(name).map(Into::into)
+    }
+
     /// Number of rows.
     pub fn len(&self) -> usize {
         self.columns.first().map_or(0, Vec::len)
@@ -150,11 +168,11 @@ impl TargetSpec {
     }
 }
 
-/// Whether an output name is a future torque expressed as a difference (`col@+k-minus@0`
-/// or `col-minus@+k`): the open-loop `paper` variants, which lean on the measured torque
-/// through a residual path and so close a loop on the applied torque when fed forward.
-pub fn is_shifted_difference_name(name: &str) -> bool {
-    name.contains("@+") && name.contains('-')
+/// Whether an output name is a future torque as an increment over the measured torque
+/// now (`col@+k-minus@0`, `paper --paper-output increment`): it closes a unit-gain loop
+/// on the applied torque when fed forward.
+pub fn is_increment_name(name: &str) -> bool {
+    name.contains("@+") && name.ends_with("@0")
 }
 
 /// Which columns go in and what comes out.
@@ -205,11 +223,19 @@ impl FeatureSpec {
         spec
     }
 
-    /// The `paper` preset's open-loop variant relative to the model: the same inputs, the
-    /// next-step torque predicted as the model's torque at that step plus the network's
-    /// residual (module docs; the exporter refuses it).
+    /// The `paper` preset relative to the model (`paper_relative`): the measured residual
+    /// `tau_meas - tau_model` in place of the measured torque, the next-step torque
+    /// predicted as the model's torque at that step plus the network's residual (module
+    /// docs): a network that knows nothing returns the model.
     pub fn paper_relative(joints: &[usize]) -> Self {
         let mut spec = Self::paper(joints);
+        spec.preset = FeaturePreset::PaperRelative.name().into();
+        for (input, j) in spec.inputs[joints.len()..2 * joints.len()]
+            .iter_mut()
+            .zip(joints)
+        {
+            *input = format!("tau_meas_j{j}-tau_model_j{j}");
+        }
         for t in &mut spec.targets {
             t.minus.clone_from(&t.model_only);
         }
@@ -231,6 +257,7 @@ impl FeatureSpec {
     pub fn for_preset(preset: &str, joints: &[usize]) -> Option<Self> {
         match preset {
             "paper" => Some(Self::paper(joints)),
+            "paper_relative" => Some(Self::paper_relative(joints)),
             "feedforward" => Some(Self::feedforward(joints)),
             "drive" => Some(Self::drive(joints)),
             _ => None,
@@ -316,10 +343,10 @@ impl FeatureSpec {
     pub fn sequence(&self, table: &Table) -> Result<Sequence> {
         let max_shift = self.targets.iter().map(|t| t.shift).max().unwrap_or(0);
         let n = table.len().saturating_sub(max_shift);
-        let ins: Vec<&[f32]> = self
+        let ins: Vec<_> = self
             .inputs
             .iter()
-            .map(|c| table.column(c))
+            .map(|c| table.input_column(c))
             .collect::<Result<_>>()?;
         let mut tcols = Vec::new();
         for t in &self.targets {

@@ -14,7 +14,8 @@ use compnet::model::LstmModel;
 use firmware::dynamics::RigidBodyModel;
 use firmware::nn::act;
 use firmware::nn::format::{
-    ACT_FRAC_BITS, I8Weights, I16Weights, INPUT_FRAC_BITS, InputActivation, WeightFormat,
+    ACT_FRAC_BITS, FeaturePreset, I8Weights, I16Weights, INPUT_FRAC_BITS, InputActivation,
+    WeightFormat,
 };
 use firmware::nn::kernels::{F32Dims, F32View, QuantDims, QuantView};
 use robot::dynamics::firmware_model::FirmwareModel;
@@ -1406,12 +1407,11 @@ pub fn render(
         attribute(meta.placement.linear_stage),
     );
     let section = section.as_str();
-    let preset = match meta.preset.as_str() {
-        "paper" => "Paper",
-        "feedforward" => "Feedforward",
-        "drive" => "Drive",
-        _ => "Custom",
-    };
+    // The variant of a known preset name; anything else is `Custom` (never input text).
+    let preset = format!(
+        "{:?}",
+        FeaturePreset::from_name(&meta.preset).unwrap_or(FeaturePreset::Custom)
+    );
     let s = &mut body;
     let _ = writeln!(
         s,

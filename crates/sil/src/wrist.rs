@@ -170,13 +170,13 @@ impl WristLstm {
         };
         let model = compnet::io::read_model(&file)?;
         let numbers = WRIST_JOINTS.map(|j| j + 1);
-        let preset = match model.preset.as_str() {
-            "paper" => FeaturePreset::Paper,
-            "feedforward" => FeaturePreset::Feedforward,
-            "drive" => FeaturePreset::Drive,
-            other => bail!(
-                "{}: preset `{other}`; the SIL runs `paper`, `feedforward` or `drive` networks",
-                file.display()
+        let preset = match FeaturePreset::from_name(&model.preset) {
+            Some(p) if p != FeaturePreset::Custom => p,
+            _ => bail!(
+                "{}: preset `{}`; the SIL runs `paper`, `paper_relative`, `feedforward` or \
+                 `drive` networks",
+                file.display(),
+                model.preset
             ),
         };
         let spec = FeatureSpec::for_preset(&model.preset, &numbers)

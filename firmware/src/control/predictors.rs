@@ -136,6 +136,8 @@ impl<T: TorqueNetwork<I, O> + ?Sized, const I: usize, const O: usize> TorqueNetw
 ///   computed for then) with the torque measured since (`tau_meas`, e.g. the mean over
 ///   the last compensator period): the output is the torque for this tick's instant.
 ///   Positions are the references (`q_ref`), which the joint tracks to encoder level.
+/// - `paper_relative`: as `paper` with the measured residual `tau_meas - tau_model` in
+///   place of `tau_meas` -> the residual one tick later, added to this tick's model torque.
 /// - `feedforward`: inputs `tau_model`, `q`, `qd` -> residual; the prediction is
 ///   `tau_model + residual` on this tick's references.
 /// - `drive`: inputs [`features::drive_inputs`] of this tick's references -> residual,
@@ -214,7 +216,12 @@ impl<N: TorqueNetwork<I, J>, const J: usize, const I: usize> TorquePredictor<J>
             }
         } else {
             let (model_prev, q_prev) = self.previous.unwrap_or((input.model_nm, q_ref));
-            let features = model_prev.iter().chain(&tau_meas).chain(&q_prev);
+            let measured = if self.preset == FeaturePreset::PaperRelative {
+                core::array::from_fn(|j| tau_meas[j] - model_prev[j])
+            } else {
+                tau_meas
+            };
+            let features = model_prev.iter().chain(&measured).chain(&q_prev);
             for (v, f) in x.iter_mut().zip(features) {
                 *v = *f;
             }
@@ -325,6 +332,32 @@ mod tests {
         assert_eq!(y, [4.0 + 0.0 + (0.25 + 3.0 * tanh)]);
         // A network of another width does not fit the drive layout.
         assert!(LstmPredictor::<_, 1, 3>::new(Pick(0), FeaturePreset::Drive).is_none());
+    }
+
+    #[test]
+    fn paper_stages_pair_the_previous_tick_with_the_torque_measured_since() {
+        // Tick 1: model 5, q 0.4, measured 9; tick 2: model 4, q 0.2, measured 7.
+        let ticks = [(0.4f32, 9.0f32, 5.0f32), (0.2, 7.0, 4.0)];
+        for (preset, want) in [
+            // `paper`: [model, measured, q] of the previous tick and the torque since;
+            // the output is the torque.
+            (FeaturePreset::Paper, [5.0, 7.0, 0.4]),
+            // `paper_relative`: the measured residual 7 - 5 in place of the torque; the
+            // output is added to this tick's model torque 4.
+            (
+                FeaturePreset::PaperRelative,
+                [4.0 + 5.0, 4.0 + 2.0, 4.0 + 0.4],
+            ),
+        ] {
+            for (pick, w) in want.iter().enumerate() {
+                let mut p = LstmPredictor::<_, 1, 3>::new(Pick(pick), preset).unwrap();
+                let mut y = [0.0];
+                for &(q, tau_meas, model) in &ticks {
+                    y = p.predict_nm(&input1(q, 0.0, tau_meas, model));
+                }
+                assert_eq!(y, [*w], "{preset:?} input {pick}");
+            }
+        }
     }
 
     #[test]

@@ -176,6 +176,10 @@ pub enum FeaturePreset {
     /// Per joint: model torque, measured torque, position (3 per joint) -> the next-step
     /// torque.
     Paper,
+    /// Per joint: model torque, measured residual (measured minus model torque), position
+    /// (3 per joint) -> the residual one tick later, added to the model's torque of that
+    /// tick: a network that knows nothing returns the model.
+    PaperRelative,
     /// Per joint: model torque, position, velocity (3 per joint) -> residual.
     Feedforward,
     /// Per joint: `crate::features::DRIVE_COLUMNS` (10 per joint) -> residual.
@@ -185,21 +189,49 @@ pub enum FeaturePreset {
 }
 
 impl FeaturePreset {
+    /// Every preset.
+    pub const ALL: [FeaturePreset; 5] = [
+        FeaturePreset::Paper,
+        FeaturePreset::PaperRelative,
+        FeaturePreset::Feedforward,
+        FeaturePreset::Drive,
+        FeaturePreset::Custom,
+    ];
+
+    /// Name in model files and metadata (`paper`, `paper_relative`, `feedforward`,
+    /// `drive`, `custom`).
+    pub const fn name(self) -> &'static str {
+        match self {
+            FeaturePreset::Paper => "paper",
+            FeaturePreset::PaperRelative => "paper_relative",
+            FeaturePreset::Feedforward => "feedforward",
+            FeaturePreset::Drive => "drive",
+            FeaturePreset::Custom => "custom",
+        }
+    }
+
+    /// The preset of a name ([`Self::name`]).
+    pub fn from_name(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|p| p.name() == name)
+    }
+
     /// Inputs per compensated joint (0 for `Custom`).
     pub const fn inputs_per_joint(self) -> usize {
         match self {
-            FeaturePreset::Paper | FeaturePreset::Feedforward => 3,
+            FeaturePreset::Paper | FeaturePreset::PaperRelative | FeaturePreset::Feedforward => 3,
             FeaturePreset::Drive => crate::features::DRIVE_INPUTS_PER_JOINT,
             FeaturePreset::Custom => 0,
         }
     }
 
-    /// The joint torque an output stands for, N*m: `Feedforward` and `Drive` add the
-    /// model torque (the network predicts the residual); `Paper` and `Custom` outputs are
-    /// torques.
+    /// The joint torque an output stands for, N*m: `PaperRelative`, `Feedforward` and
+    /// `Drive` add the model torque (the network predicts the residual); `Paper` and
+    /// `Custom` outputs are torques.
     pub fn torque_nm(self, output: f32, model_nm: f32) -> f32 {
         match self {
-            FeaturePreset::Feedforward | FeaturePreset::Drive => model_nm + output,
+            FeaturePreset::PaperRelative | FeaturePreset::Feedforward | FeaturePreset::Drive => {
+                model_nm + output
+            }
             FeaturePreset::Paper | FeaturePreset::Custom => output,
         }
     }
@@ -210,5 +242,20 @@ impl FeaturePreset {
             FeaturePreset::Custom => true,
             _ => inputs == self.inputs_per_joint() * joints && outputs == joints,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn preset_names_round_trip_and_only_paper_outputs_torque() {
+        for p in FeaturePreset::ALL {
+            assert_eq!(FeaturePreset::from_name(p.name()), Some(p));
+            let absolute = matches!(p, FeaturePreset::Paper | FeaturePreset::Custom);
+            assert_eq!(p.torque_nm(1.0, 10.0), if absolute { 1.0 } else { 11.0 });
+        }
+        assert_eq!(FeaturePreset::from_name("Paper"), None);
     }
 }

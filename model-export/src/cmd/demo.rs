@@ -364,10 +364,13 @@ pub fn demo(a: &DemoArgs, firmware: &mut dyn FirmwareStages) -> Result<()> {
             .join(",")
     };
     let test_data = data.join("test.csv");
-    // `paper_increment`: the paper's network with the increment output (open-loop
-    // prediction: Table 2 beside the next-step form; the exporter refuses it).
+    // Beside the next-step form (exported and run in the closed loop), Table 2's other
+    // forms of the paper's network: `paper_relative` (the residual over the model's
+    // next-step torque, exportable) and `paper_increment` (open-loop prediction only; the
+    // exporter refuses it).
     for (name, preset, paper_output) in [
         ("paper", "paper", "next"),
+        ("paper_relative", "paper", "relative"),
         ("paper_increment", "paper", "increment"),
         ("feedforward", "feedforward", "next"),
     ] {
@@ -535,6 +538,7 @@ struct Table2Row {
     joint: usize,
     paper: Compensation,
     ours: Compensation,
+    ours_relative: Compensation,
     ours_increment: Compensation,
 }
 
@@ -574,6 +578,8 @@ impl Report {
         let identified = ModelFile::read(&out.join("model/identified.json"))?;
         let train: TrainReport = read_report(&out.join("model/train_paper.json"))?;
         let evaluate: EvaluationReport = read_report(&out.join("model/evaluate_paper.json"))?;
+        let evaluate_rel: EvaluationReport =
+            read_report(&out.join("model/evaluate_paper_relative.json"))?;
         let evaluate_inc: EvaluationReport =
             read_report(&out.join("model/evaluate_paper_increment.json"))?;
         let evaluate_ff: EvaluationReport =
@@ -589,6 +595,7 @@ impl Report {
                 .with_context(|| format!("{name}: no evaluated run"))
         };
         let rows = first_run(&evaluate, "evaluate_paper.json")?;
+        let rows_rel = first_run(&evaluate_rel, "evaluate_paper_relative.json")?;
         let rows_inc = first_run(&evaluate_inc, "evaluate_paper_increment.json")?;
         let rows_ff = first_run(&evaluate_ff, "evaluate_feedforward.json")?;
 
@@ -660,10 +667,14 @@ impl Report {
             md,
             "Next-step measured torque predicted by the identified model alone (uncompensated) \
              and by the paper's network (compensated, the firmware's f32 step streamed over the \
-             whole test run from a zero state); persistence predicts τ(t+1) = τ(t). Two forms of \
-             the same network (9 inputs -> 64 -> LSTM 64 -> 3, same data and training): \
+             whole test run from a zero state); persistence predicts τ(t+1) = τ(t). Three forms \
+             of the same network (9 inputs -> 64 -> LSTM 64 -> 3, same data and training): \
              *next-step output* predicts the torque itself (the paper's form, the one exported \
-             to the firmware and run in the closed loop below); *increment output* predicts \
+             to the firmware and run in the closed loop below); *relative output* reads the \
+             measured residual τ - τ_model in place of τ and predicts the residual at t+1 over \
+             the model's torque then (`train --paper-output relative`, exportable: a network \
+             that knows nothing returns the model, and on large joints its output keeps the \
+             scale of the residual, not of the torque); *increment output* predicts \
              τ(t+1) - τ(t) and adds the measured τ(t) back (`train --paper-output increment`), \
              which is what beats persistence, but as a drive's feedforward it closes a \
              unit-gain loop on the applied torque, so the exporter refuses it \
@@ -671,19 +682,28 @@ impl Report {
         );
         let _ = writeln!(
             md,
-            "| joint | paper uncompensated | paper compensated | paper reduction % | ours uncompensated | ours compensated, next-step output | reduction % | ours compensated, increment output | reduction % | persistence |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
+            "| joint | paper uncompensated | paper compensated | paper reduction % | ours uncompensated | ours compensated, next-step output | reduction % | ours compensated, relative output | reduction % | ours compensated, increment output | reduction % | persistence |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
         );
         let mut table2 = Vec::new();
-        for (((joint, pu, pc, pr), r), ri) in
-            compnet::eval::PAPER_TABLE2.iter().zip(&rows).zip(&rows_inc)
+        for ((((joint, pu, pc, pr), r), rr), ri) in compnet::eval::PAPER_TABLE2
+            .iter()
+            .zip(&rows)
+            .zip(&rows_rel)
+            .zip(&rows_inc)
         {
-            let (ours, inc) = (Compensation::of(&r.eval), Compensation::of(&ri.eval));
+            let (ours, rel, inc) = (
+                Compensation::of(&r.eval),
+                Compensation::of(&rr.eval),
+                Compensation::of(&ri.eval),
+            );
             let _ = writeln!(
                 md,
-                "| {joint} | {pu:.2} | {pc:.2} | {pr:.1} | {:.3} | {:.3} | {:.1} | {:.3} | {:.1} | {:.3} |",
+                "| {joint} | {pu:.2} | {pc:.2} | {pr:.1} | {:.3} | {:.3} | {:.1} | {:.3} | {:.1} | {:.3} | {:.1} | {:.3} |",
                 ours.uncompensated_nm,
                 ours.compensated_nm,
                 ours.reduction_pct,
+                rel.compensated_nm,
+                rel.reduction_pct,
                 inc.compensated_nm,
                 inc.reduction_pct,
                 ours.persistence_nm.unwrap_or(f64::NAN)
@@ -697,6 +717,7 @@ impl Report {
                     persistence_nm: None,
                 },
                 ours,
+                ours_relative: rel,
                 ours_increment: inc,
             });
         }
@@ -805,24 +826,28 @@ impl Report {
         let mut summary = String::from("Summary\n");
         let _ = writeln!(
             summary,
-            "{:<6} {:>14} {:>16} {:>12} {:>16} {:>12} {:>12}",
+            "{:<6} {:>14} {:>16} {:>12} {:>16} {:>12} {:>16} {:>12} {:>12}",
             "joint",
             "uncompensated",
             "next-step out.",
+            "reduction %",
+            "relative out.",
             "reduction %",
             "increment out.",
             "reduction %",
             "persistence"
         );
         for t in &table2 {
-            let (o, i) = (&t.ours, &t.ours_increment);
+            let (o, r, i) = (&t.ours, &t.ours_relative, &t.ours_increment);
             let _ = writeln!(
                 summary,
-                "{:<6} {:>14.3} {:>16.3} {:>12.1} {:>16.3} {:>12.1} {:>12.3}",
+                "{:<6} {:>14.3} {:>16.3} {:>12.1} {:>16.3} {:>12.1} {:>16.3} {:>12.1} {:>12.3}",
                 t.joint,
                 o.uncompensated_nm,
                 o.compensated_nm,
                 o.reduction_pct,
+                r.compensated_nm,
+                r.reduction_pct,
                 i.compensated_nm,
                 i.reduction_pct,
                 o.persistence_nm.unwrap_or(f64::NAN)
@@ -849,6 +874,7 @@ impl Report {
             "training": {"lr": train.lr, "best_epoch": train.best_epoch, "epochs": train.epochs,
                           "train_loss": train.train_loss, "val_loss": train.val_loss},
             "evaluation": evaluate,
+            "evaluation_relative": evaluate_rel,
             "evaluation_increment": evaluate_inc,
             "quantisation": accuracy,
             "budget": budget.map(|_| read_report::<Value>(&out.join("firmware/budget.json"))).transpose()?,

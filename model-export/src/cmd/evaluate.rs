@@ -160,7 +160,9 @@ pub fn run(a: EvaluateArgs) -> Result<()> {
                 eval::markdown(&plain)
             }
         );
-        let paper = (spec.preset == "paper")
+        let paper = spec
+            .preset
+            .starts_with("paper")
             .then(|| eval::beside_paper_markdown(&a.features.joints, &plain))
             .flatten();
         if let Some(t) = &paper {

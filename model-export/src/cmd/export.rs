@@ -199,17 +199,17 @@ pub fn export(m: &LstmModel, a: &ExportArgs) -> Result<(Exported, PlacementChoic
 /// [`export`] writes to `a.out` (after every check: the do-no-harm gate, the flash
 /// and SRAM budgets).
 pub fn render_export(m: &LstmModel, a: &ExportArgs) -> Result<(Exported, PlacementChoice, String)> {
-    let difference = m
+    let increment = m
         .output_names
         .iter()
-        .find(|n| compnet::data::is_shifted_difference_name(n));
-    if let Some(name) = difference {
+        .find(|n| compnet::data::is_increment_name(n));
+    if let Some(name) = increment {
         bail!(
-            "the model predicts a future torque as a difference (output `{name}`, \
-             `train --paper-output increment` or `relative`): it leans on the measured \
-             torque through a residual path, and fed forward in a drive that closes a \
-             loop on the applied torque (model-export/README.md); export a network \
-             trained with `--paper-output next`, or the `drive` preset"
+            "the model predicts the next-step torque as an increment over the measured \
+             torque (output `{name}`, `train --paper-output increment`): fed forward, it \
+             closes a unit-gain loop on the applied torque (crates/sil/README.md); export \
+             a network trained with `--paper-output relative` or `next`, or the `drive` \
+             preset"
         );
     }
     let warning = match a.model {

@@ -27,9 +27,11 @@ pub struct FeatureArgs {
     #[arg(long, default_value_t = 0)]
     pub shift: usize,
     /// `paper`: how the network's output gives the next-step torque: `next` (the torque
-    /// itself, the paper's form and the one a drive can feed forward) or `increment`
-    /// (the measured torque now plus the output: beats persistence in open loop, but fed
-    /// forward it closes a unit-gain loop on the applied torque; not exportable).
+    /// itself, the paper's form), `relative` (preset `paper_relative`: the measured
+    /// residual in, the residual over the model's next-step torque out; a network that
+    /// knows nothing returns the model) or `increment` (the measured torque now plus the
+    /// output: beats persistence in open loop, but fed forward it closes a unit-gain loop
+    /// on the applied torque; not exportable).
     #[arg(long, value_enum, default_value_t = PaperOutput::Next)]
     pub paper_output: PaperOutput,
 }
