@@ -127,7 +127,8 @@ for spec in "${all_nets[@]}"; do
   nets_run+=("$name")
   echo "== $name: preset $preset on $dir/"
   # The drive-side compensator is what each joint's drive runs: one small network per
-  # joint on that joint's own features (10 -> 16 -> LSTM 16 -> 1, the per-joint budget),
+  # joint on that joint's own features and the residual it measured over the previous
+  # tick (11 -> 16 -> LSTM 16 -> 1, the per-joint budget),
   # learning what the linear stage and the drive's online adaptation leave, its
   # do-no-harm gain judged on every held-out run (4 run-wise folds of the training runs
   # and the validation run).

@@ -7,8 +7,12 @@
 //! reversal builds up over the angle travelled since the reversal, not with the
 //! velocity, so each element is a spring of a given span that saturates at +-1 (a
 //! generalised Maxwell-slip friction model, linear in its weights and independent of
-//! the sample rate). The host writes the same columns into its datasets with these
-//! functions, so training and the drive see the same bits.
+//! the sample rate); and the residual the drive measured over the previous tick (its
+//! own torque minus the model torque it predicted for that tick: what the model missed
+//! a tick ago, the strongest single predictor of what it misses now). The host writes
+//! the same columns into its datasets with these functions (the measured residual it
+//! derives when it reads a dataset, [`MEASURED_RESIDUAL_COLUMN`]), so training and the
+//! drive see the same bits.
 
 use crate::math;
 
@@ -24,8 +28,13 @@ pub const PRESLIDING_INV_SPANS_PER_RAD: [f32; PRESLIDING_ELEMENTS] =
 
 /// Inputs per joint of the `drive` preset, in this order: `sin q`, `cos q`, `qd`
 /// [rad/s], `qdd` [rad/s^2], model torque [N*m], rest direction (-1, 0, +1), the
-/// presliding states (-1 ..= +1, spans [`PRESLIDING_INV_SPANS_PER_RAD`]).
-pub const DRIVE_INPUTS_PER_JOINT: usize = 6 + PRESLIDING_ELEMENTS;
+/// presliding states (-1 ..= +1, spans [`PRESLIDING_INV_SPANS_PER_RAD`]), the residual
+/// measured over the previous tick [N*m].
+pub const DRIVE_INPUTS_PER_JOINT: usize = 7 + PRESLIDING_ELEMENTS;
+
+/// The `drive` column of the residual measured over the previous tick: in a dataset,
+/// `tau_meas - tau_model` of the previous row (of the first row, its own), in f32.
+pub const MEASURED_RESIDUAL_COLUMN: &str = "tau_resid_prev";
 
 /// Names of the `drive` preset's per-joint dataset columns (suffix `_j<N>`), in input
 /// order.
@@ -40,6 +49,7 @@ pub const DRIVE_COLUMNS: [&str; DRIVE_INPUTS_PER_JOINT] = [
     "slip_3mrad",
     "slip_10mrad",
     "slip_30mrad",
+    MEASURED_RESIDUAL_COLUMN,
 ];
 
 /// Number of friction features of the `drive` preset's linear stage.
@@ -90,7 +100,19 @@ pub const FRICTION_FEATURE_NAMES: [&str; FRICTION_FEATURES] = [
 /// load-dependent friction, and the presliding states alone and scaled by the load).
 #[inline]
 pub fn friction_features(x: &[f32; DRIVE_INPUTS_PER_JOINT]) -> [f32; FRICTION_FEATURES] {
-    let [s, c, qd, qdd, model, rest, p0, p1, p2, p3] = *x;
+    let [
+        s,
+        c,
+        qd,
+        qdd,
+        model,
+        rest,
+        p0,
+        p1,
+        p2,
+        p3,
+        _measured_residual,
+    ] = *x;
     let th = FRICTION_TANH_INV_SPEEDS_S_RAD.map(|inv| math::tanh(qd * inv));
     let load = model.abs();
     let sign = if qd > 0.0 {
@@ -238,7 +260,8 @@ impl MotionMemory {
 }
 
 /// One joint's `drive` inputs ([`DRIVE_COLUMNS`] order); `rest_direction` and
-/// `presliding` from [`MotionMemory::update`].
+/// `presliding` from [`MotionMemory::update`]; `measured_residual_nm` the torque measured
+/// over the previous tick minus the model torque predicted for it.
 #[inline]
 pub fn drive_inputs(
     q_rad: f32,
@@ -246,6 +269,7 @@ pub fn drive_inputs(
     qdd_rad_s2: f32,
     model_nm: f32,
     (rest_direction, presliding): (f32, [f32; PRESLIDING_ELEMENTS]),
+    measured_residual_nm: f32,
 ) -> [f32; DRIVE_INPUTS_PER_JOINT] {
     let (s, c) = math::sin_cos(q_rad);
     let [p0, p1, p2, p3] = presliding;
@@ -260,6 +284,7 @@ pub fn drive_inputs(
         p1,
         p2,
         p3,
+        measured_residual_nm,
     ]
 }
 
@@ -279,7 +304,7 @@ mod tests {
     fn friction_features_follow_their_names() {
         let (q, qd) = (0.4f32, -0.3f32);
         let slip = [0.5, -0.25, 1.0, -1.0];
-        let x = drive_inputs(q, qd, 2.0, -5.0, (1.0, slip));
+        let x = drive_inputs(q, qd, 2.0, -5.0, (1.0, slip), 7.0);
         let f = friction_features(&x);
         let close = |a: f32, b: f64| (f64::from(a) - b).abs() < 1e-6;
         let qd64 = f64::from(qd);
@@ -303,10 +328,10 @@ mod tests {
 
     #[test]
     fn drive_inputs_bound_the_angle() {
-        let x = drive_inputs(100.0, 1.0, 2.0, 3.0, (-1.0, [0.0, 0.1, 0.2, 0.3]));
+        let x = drive_inputs(100.0, 1.0, 2.0, 3.0, (-1.0, [0.0, 0.1, 0.2, 0.3]), 7.0);
         assert!(x[0].abs() <= 1.0 && x[1].abs() <= 1.0);
         assert!((x[0] * x[0] + x[1] * x[1] - 1.0).abs() < 1e-6);
-        assert_eq!(&x[2..], &[1.0, 2.0, 3.0, -1.0, 0.0, 0.1, 0.2, 0.3]);
+        assert_eq!(&x[2..], &[1.0, 2.0, 3.0, -1.0, 0.0, 0.1, 0.2, 0.3, 7.0]);
     }
 
     #[test]

@@ -6,10 +6,10 @@ use firmware::features::{self, DRIVE_COLUMNS, MotionMemory};
 use model_export::cli::run_args as cli;
 use std::path::{Path, PathBuf};
 
-/// A `drive` dataset of joint 1: a sine of `amplitude_rad` at `rate_rad_s`, measured
-/// torque = model torque + viscous and Coulomb friction + white noise (seeded), which no
-/// network can predict.
-fn drive_run(path: &Path, amplitude_rad: f64, rate_rad_s: f64, seed: u64) {
+/// A `drive` dataset of joint 1: a sine of `amplitude_rad` at `rate_rad_s` from phase
+/// `phase_rad`, measured torque = model torque + viscous and Coulomb friction + white
+/// noise (seeded), which no network can predict.
+fn drive_run(path: &Path, amplitude_rad: f64, rate_rad_s: f64, phase_rad: f64, seed: u64) {
     let mut head = String::from("time_s,q_j1,qd_j1,tau_meas_j1,tau_model_j1,qdd_j1");
     for c in [0, 1, 5, 6, 7, 8, 9] {
         head += &format!(",{}_j1", DRIVE_COLUMNS[c]);
@@ -25,8 +25,8 @@ fn drive_run(path: &Path, amplitude_rad: f64, rate_rad_s: f64, seed: u64) {
     let mut memory = MotionMemory::new();
     for k in 0..1500 {
         let t = k as f64 * 0.01;
-        let q = amplitude_rad * (rate_rad_s * t).sin();
-        let qd = amplitude_rad * rate_rad_s * (rate_rad_s * t).cos();
+        let q = amplitude_rad * (rate_rad_s * t + phase_rad).sin();
+        let qd = amplitude_rad * rate_rad_s * (rate_rad_s * t + phase_rad).cos();
         let qdd = -rate_rad_s * rate_rad_s * q;
         let model = 3.0 * q.cos() + 0.5 * qdd;
         let meas = model + 0.4 * (qd / 0.05).tanh() + 0.8 * qd + 2.0 * noise();
@@ -36,6 +36,7 @@ fn drive_run(path: &Path, amplitude_rad: f64, rate_rad_s: f64, seed: u64) {
             0.0,
             0.0,
             memory.update(q as f32, qd as f32),
+            0.0,
         );
         csv += &format!("{t},{q},{qd},{meas},{model},{qdd}");
         for c in [0, 1, 5, 6, 7, 8, 9] {
@@ -46,12 +47,15 @@ fn drive_run(path: &Path, amplitude_rad: f64, rate_rad_s: f64, seed: u64) {
     std::fs::write(path, csv).unwrap();
 }
 
-/// `n` drive datasets of joint 1 in `dir`, of growing amplitude and rate.
+/// `n` drive datasets of joint 1 in `dir`: the same amplitude and rate from other phases,
+/// with fresh noise. (Runs of growing amplitude would make each held-out run an
+/// extrapolation of the linear stage, whose error the measured residual input predicts:
+/// the network could then help.)
 fn drive_runs(dir: &Path, n: usize) -> Vec<PathBuf> {
     (0..n)
         .map(|k| {
             let r = dir.join(format!("run{k}.csv"));
-            drive_run(&r, 0.5 + 0.2 * k as f64, 1.0 + 0.5 * k as f64, k as u64 + 1);
+            drive_run(&r, 0.8, 1.5, 0.7 * k as f64, k as u64 + 1);
             r
         })
         .collect()

@@ -253,7 +253,8 @@ pub const ADAPTATION_TICKS: u32 = 64;
 
 /// The `features` suite's case: `drive_inputs` of q in [-2π, 2π), qd in [-2, 2) rad/s
 /// (every fourth case inside the rest band), qdd in [-10, 10), model torque in
-/// [-100, 100) N*m, rest direction -1, 0 or +1, presliding states in [-1, 1); the
+/// [-100, 100) N*m, rest direction -1, 0 or +1, presliding states in [-1, 1), measured
+/// residual in [-20, 20) N*m; the
 /// friction features, then the linear correction with fixed coefficients, then the
 /// presliding states after eight steps of up to +-20 mrad from q; then the friction
 /// adaptation (time constant 20-120 ms at 1 kHz, +-5 N*m) after [`ADAPTATION_TICKS`]
@@ -277,6 +278,7 @@ pub fn feature_output(case: usize) -> [f32; FEATURE_VALUES] {
             (case % 3) as f32 - 1.0,
             core::array::from_fn(|k| r(4 + k as u32)),
         ),
+        20.0 * r(9),
     );
     let coefficients: [f32; features::FRICTION_FEATURES] =
         core::array::from_fn(|k| 0.5 * r(40 + k as u32));

@@ -21,8 +21,14 @@ pub const N_FEATURES: usize = features::FRICTION_FEATURES;
 /// Feature names, in coefficient order (units of each coefficient: N·m per feature unit).
 pub const FEATURE_NAMES: [&str; N_FEATURES] = features::FRICTION_FEATURE_NAMES;
 
-/// Singular values below this fraction of the largest (column-scaled design) count as 0.
-const RCOND: f64 = 1e-10;
+/// Singular values below this fraction of the largest (column-scaled design) count as 0:
+/// about f32's resolution. The drive evaluates the stage in f32 from f32 inputs (and a
+/// dataset stores six decimals), so a direction the features span only to that
+/// precision (a model torque that never changes sign makes `|tau_model|` equal to
+/// `tau_model`; a model torque that is a combination of the pose and acceleration
+/// features) is rounding noise: fitted, it gives opposite coefficients of 1e4 or more
+/// that cancel on the training runs only.
+const RCOND: f64 = 1e-6;
 
 /// A fitted baseline: per joint, coefficients of [`FEATURE_NAMES`] (N·m per feature unit).
 #[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
@@ -111,10 +117,12 @@ pub fn features(table: &Table, joint: usize) -> Result<Vec<[f64; N_FEATURES]>> {
             }
         }
     }
-    // The drive's own feature function (f32), as the `drive` preset's linear stage.
+    // The drive's own feature function (f32), as the `drive` preset's linear stage (the
+    // measured residual is not a friction feature: 0).
     let rows: Vec<[f64; N_FEATURES]> = (0..table.len())
         .map(|k| {
-            let x = features::drive_inputs(q[k], qd[k], qdd[k] as f32, tau_model[k], memory[k]);
+            let x =
+                features::drive_inputs(q[k], qd[k], qdd[k] as f32, tau_model[k], memory[k], 0.0);
             features::friction_features(&x).map(f64::from)
         })
         .collect();

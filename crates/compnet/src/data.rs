@@ -22,12 +22,15 @@
 //!   `tau_meas_j* - tau_model_j*` at the same step; model-only prediction 0.
 //! - `drive`: what the drive knows before the tick, per joint (`firmware::features`):
 //!   `sin_q_j*`, `cos_q_j*`, `qd_j*`, `qdd_j*`, `tau_model_j*` (the first stage),
-//!   `rest_dir_j*` → target the residual `tau_meas_j* - tau_model_j*` at the same step;
-//!   model-only prediction 0. Angles enter as sine and cosine, so poses outside the
-//!   training range stay in distribution.
+//!   `rest_dir_j*`, the presliding states `slip_*_j*`, and the residual measured over the
+//!   previous tick `tau_resid_prev_j*` (derived from the previous row when a dataset does
+//!   not store it, [`Table::input_column`]) → target the residual
+//!   `tau_meas_j* - tau_model_j*` at the same step; model-only prediction 0. Angles enter
+//!   as sine and cosine, so poses outside the training range stay in distribution.
 //! - `custom`: `--inputs a,b,c --targets y1,y2-z2 --shift k`: a target is a column or a
 //!   difference `col-col`, taken `k` steps ahead; model-only prediction 0.
 use anyhow::{Context, Result, bail};
+use firmware::features;
 use firmware::nn::format::FeaturePreset;
 use std::path::{Path, PathBuf};
 
@@ -102,23 +105,32 @@ impl Table {
         }
     }
 
-    /// A column by name, or the difference `a - b` of two columns for a name `a-b`
-    /// (an input such as the measured residual `tau_meas_j1-tau_model_j1`), in f32 like
-    /// the firmware.
+    /// A column by name; when the table has no such column, two derived inputs (in f32,
+    /// as the firmware computes them): for a name `a-b` the difference of two columns
+    /// (the `paper_relative` preset's measured residual `tau_meas_j1-tau_model_j1`), and
+    /// for `tau_resid_prev_j<N>` ([`features::MEASURED_RESIDUAL_COLUMN`], the `drive`
+    /// preset's) the residual `tau_meas_j<N> - tau_model_j<N>` of the previous row (the
+    /// first row's own).
     pub fn input_column(&self, name: &str) -> Result<std::borrow::Cow<'_, [f32]>> {
-        if let Some((a, b)) = name
-            .split_once('-')
-            .filter(|_| !self.names.iter().any(|n| n == name))
-        {
-            let (a, b) = (self.column(a)?, self.column(b)?);
-            return Ok(a
-                .iter()
-                .zip(b)
-                .map(|(a, b)| a - b)
-                .collect::<Vec<_>>()
-                .into());
+        if self.names.iter().any(|n| n == name) {
+            return self.column(name).map(Into::into);
         }
-        self.column(name).map(Into::into)
+        let difference = |a: &str, b: &str| -> Result<Vec<f32>> {
+            let (a, b) = (self.column(a)?, self.column(b)?);
+            Ok(a.iter().zip(b).map(|(a, b)| a - b).collect())
+        };
+        let lagged = name
+            .strip_prefix(features::MEASURED_RESIDUAL_COLUMN)
+            .and_then(|j| j.strip_prefix("_j"));
+        if let Some(j) = lagged {
+            let r = difference(&format!("tau_meas_j{j}"), &format!("tau_model_j{j}"))?;
+            let previous = r.first().into_iter().chain(&r).take(r.len());
+            return Ok(previous.copied().collect::<Vec<_>>().into());
+        }
+        match name.split_once('-') {
+            Some((a, b)) => Ok(difference(a, b)?.into()),
+            None => self.column(name).map(Into::into),
+        }
     }
 
     /// Number of rows.
@@ -249,7 +261,7 @@ impl FeatureSpec {
 
     /// The `drive` preset for `joints` (see module docs).
     pub fn drive(joints: &[usize]) -> Self {
-        Self::residual("drive", &firmware::features::DRIVE_COLUMNS, joints)
+        Self::residual("drive", &features::DRIVE_COLUMNS, joints)
     }
 
     /// The spec of a named preset (`paper`, `feedforward`, `drive`) for `joints`; `None`

@@ -140,7 +140,8 @@ impl<T: TorqueNetwork<I, O> + ?Sized, const I: usize, const O: usize> TorqueNetw
 ///   place of `tau_meas` -> the residual one tick later, added to this tick's model torque.
 /// - `feedforward`: inputs `tau_model`, `q`, `qd` -> residual; the prediction is
 ///   `tau_model + residual` on this tick's references.
-/// - `drive`: inputs [`features::drive_inputs`] of this tick's references -> residual,
+/// - `drive`: inputs [`features::drive_inputs`] of this tick's references and the residual
+///   measured since the previous tick (`tau_meas` minus that tick's model torque) -> residual,
 ///   added to `tau_model` like `feedforward`, plus the preset's linear stage
 ///   ([`features::linear_correction_nm`] of the same inputs, [`Self::with_linear_stage`]).
 pub struct LstmPredictor<N: TorqueNetwork<I, J>, const J: usize, const I: usize> {
@@ -193,6 +194,9 @@ impl<N: TorqueNetwork<I, J>, const J: usize, const I: usize> TorquePredictor<J>
         let mut x = [0.0f32; I];
         let mut linear_nm = [0.0f32; J];
         if self.preset == FeaturePreset::Drive {
+            // The residual measured since the last tick: the torque measured over it
+            // minus the model torque predicted for it (on the first tick, this one's).
+            let (model_prev, _) = self.previous.unwrap_or((input.model_nm, q_ref));
             for (j, (s, motion)) in input.joints.iter().zip(self.motion.iter_mut()).enumerate() {
                 let f = features::drive_inputs(
                     s.q_ref_rad,
@@ -200,6 +204,7 @@ impl<N: TorqueNetwork<I, J>, const J: usize, const I: usize> TorquePredictor<J>
                     s.qdd_ref_rad_s2,
                     input.model_nm[j],
                     motion.update(s.q_ref_rad, s.qd_ref_rad_s),
+                    tau_meas[j] - model_prev[j],
                 );
                 for (kind, v) in f.iter().enumerate().take(DRIVE_INPUTS_PER_JOINT) {
                     if let Some(slot) = x.get_mut(kind * J + j) {
@@ -208,6 +213,7 @@ impl<N: TorqueNetwork<I, J>, const J: usize, const I: usize> TorquePredictor<J>
                 }
                 linear_nm[j] = features::linear_correction_nm(&self.linear[j], &f);
             }
+            self.previous = Some((input.model_nm, q_ref));
         } else if self.preset == FeaturePreset::Feedforward {
             let qd_ref = input.joints.map(|s| s.qd_ref_rad_s);
             let features = input.model_nm.iter().chain(&q_ref).chain(&qd_ref);
@@ -310,9 +316,14 @@ mod tests {
         // 0.2 rad backwards saturates every presliding element at -1.
         let ticks = [(0.4f32, -0.3f32, 2.0f32, 5.0f32), (0.2, 0.0, 0.0, 4.0)];
         let (s, c) = math::sin_cos(0.2);
-        let want = [s, c, 0.0, 0.0, 4.0, -1.0, -1.0, -1.0, -1.0, -1.0];
+        // The residual measured since the first tick: 9 - 5.
+        let want = [s, c, 0.0, 0.0, 4.0, -1.0, -1.0, -1.0, -1.0, -1.0, 9.0 - 5.0];
         for (pick, w) in want.iter().enumerate() {
-            let mut p = LstmPredictor::<_, 1, 10>::new(Pick(pick), FeaturePreset::Drive).unwrap();
+            let mut p = LstmPredictor::<_, 1, DRIVE_INPUTS_PER_JOINT>::new(
+                Pick(pick),
+                FeaturePreset::Drive,
+            )
+            .unwrap();
             let mut y = [0.0];
             for &(q, qd, qdd, m) in &ticks {
                 let mut input = input1(q, qd, 9.0, m);
@@ -324,9 +335,10 @@ mod tests {
         // The linear stage adds its correction of the same inputs.
         let mut w = [[0.0; FRICTION_FEATURES]; 1];
         (w[0][0], w[0][4]) = (0.25, 3.0);
-        let mut p = LstmPredictor::<_, 1, 10>::new(Pick(5), FeaturePreset::Drive)
-            .unwrap()
-            .with_linear_stage(w);
+        let mut p =
+            LstmPredictor::<_, 1, DRIVE_INPUTS_PER_JOINT>::new(Pick(5), FeaturePreset::Drive)
+                .unwrap()
+                .with_linear_stage(w);
         let y = p.predict_nm(&input1(0.2, 0.5, 9.0, 4.0));
         let tanh = math::tanh(0.5 * 5.0);
         assert_eq!(y, [4.0 + 0.0 + (0.25 + 3.0 * tanh)]);

@@ -182,7 +182,7 @@ pub enum FeaturePreset {
     PaperRelative,
     /// Per joint: model torque, position, velocity (3 per joint) -> residual.
     Feedforward,
-    /// Per joint: `crate::features::DRIVE_COLUMNS` (10 per joint) -> residual.
+    /// Per joint: `crate::features::DRIVE_COLUMNS` (11 per joint) -> residual.
     Drive,
     /// Other columns (no layout check beyond the sizes).
     Custom,

@@ -619,7 +619,7 @@ fn compensation_dataset_csv(
             .zip(motion.iter_mut())
             .map(|(&j, m)| {
                 let (q, qd) = (stored(s.q_rad[j][k]), stored(s.qd_rad_s[j][k]));
-                features::drive_inputs(q, qd, 0.0, 0.0, m.update(q, qd))
+                features::drive_inputs(q, qd, 0.0, 0.0, m.update(q, qd), 0.0)
             })
             .collect();
         for col in DERIVED_COLUMNS {
