@@ -69,7 +69,11 @@ fn a_preset_that_does_not_match_the_network_names_both() {
         &net,
         &data,
         &["--preset", "paper", "--joints", "4"],
-        &["ff.safetensors", "preset `feedforward`", "preset `paper`"],
+        &[
+            "ff.safetensors",
+            "preset `feedforward`",
+            "preset `paper_relative`",
+        ],
         dir.path(),
     );
 }

@@ -10,8 +10,10 @@ use std::path::{Path, PathBuf};
 /// Which columns the network reads and predicts.
 #[derive(Debug, Args)]
 pub struct FeatureArgs {
-    /// Feature preset: `paper` (tau_model, tau_meas, q of each joint -> next-step tau_meas),
-    /// `feedforward` (tau_model, q, qd -> tau_meas - tau_model) or `custom` (--inputs/--targets).
+    /// Feature preset: `paper` (tau_model, tau_meas, q of each joint -> next-step tau_meas;
+    /// forms: `--paper-output`), `feedforward` (tau_model, q, qd -> tau_meas - tau_model),
+    /// `drive` (what the drive knows before the tick and the residual it measured over the
+    /// previous tick -> tau_meas - tau_model) or `custom` (--inputs/--targets).
     #[arg(long, default_value = "paper")]
     pub preset: String,
     /// Joints for the presets (columns `q_j4`, `qd_j4`, `tau_meas_j4`, `tau_model_j4`, ...).
@@ -26,13 +28,14 @@ pub struct FeatureArgs {
     /// `custom`: steps ahead the targets are taken.
     #[arg(long, default_value_t = 0)]
     pub shift: usize,
-    /// `paper`: how the network's output gives the next-step torque: `next` (the torque
-    /// itself, the paper's form), `relative` (preset `paper_relative`: the measured
-    /// residual in, the residual over the model's next-step torque out; a network that
-    /// knows nothing returns the model) or `increment` (the measured torque now plus the
-    /// output: beats persistence in open loop, but fed forward it closes a unit-gain loop
-    /// on the applied torque; not exportable).
-    #[arg(long, value_enum, default_value_t = PaperOutput::Next)]
+    /// `paper`: how the network's output gives the next-step torque: `relative` (the
+    /// default, preset `paper_relative`: the measured residual in, the residual over the
+    /// model's next-step torque out; a network that knows nothing returns the model, and
+    /// on large joints the output keeps the scale of the residual), `next` (the torque
+    /// itself, the paper's form) or `increment` (the measured torque now plus the output:
+    /// beats persistence in open loop, but fed forward it closes a unit-gain loop on the
+    /// applied torque; not exportable).
+    #[arg(long, value_enum, default_value_t = PaperOutput::Relative)]
     pub paper_output: PaperOutput,
 }
 
