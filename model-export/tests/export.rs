@@ -330,7 +330,11 @@ fn gate_case(dir: &Path) -> (LstmModel, PathBuf) {
         let tau = 2.0 * q.sin() + 0.3 * qd;
         // tau_meas, sin q, cos q, qd, qdd, tau_model, rest_dir, presliding states, the
         // residual measured over the previous tick (0: the model is exact)
-        csv += &format!("{t},{tau},{},{},{qd},0,{tau},0,0,0,0,0,0\n", q.sin(), q.cos());
+        csv += &format!(
+            "{t},{tau},{},{},{qd},0,{tau},0,0,0,0,0,0\n",
+            q.sin(),
+            q.cos()
+        );
     }
     std::fs::write(&run, csv).unwrap();
     (m, run)
