@@ -260,9 +260,9 @@ pub fn lstm_small_i16<
     }
     #[cfg(fw_dsp_asm)]
     {
-        use crate::nn::act::{ACT_TABLES, SIGMOID, TABLE_LEN, TANH};
+        use crate::nn::act::{SIGMOID, TABLE_LEN, TANH};
         let mid = |f: usize| {
-            ACT_TABLES.get(f).map_or(core::ptr::null(), |t| {
+            F::ACT_TABLES.get(f).map_or(core::ptr::null(), |t| {
                 t.as_ptr().wrapping_add(TABLE_LEN / 2)
             }) as usize
         };

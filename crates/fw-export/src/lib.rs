@@ -484,6 +484,8 @@ impl<F: WeightFormat> QuantNet<F> {
             gate_w: &self.gate_w,
             gate_bias: &self.gate_bias,
             gate_shift: self.gate_shift,
+            // The host has one memory: either static holds the same values.
+            act_tables: &act::ACT_TABLES_FLASH,
             out_w: &self.out_w,
             out_scale: &self.out_scale,
             out_offset: &self.out_offset,
@@ -694,6 +696,15 @@ impl Exported {
         }
     }
 
+    /// Bytes of the activation tables the network reads (`firmware::nn::act`, 32 KiB for
+    /// the integer networks; 0 for f32, whose activations are computed).
+    pub fn act_tables_bytes(&self) -> usize {
+        match self {
+            Exported::F32(_) => 0,
+            Exported::Int16(_) | Exported::Int8(_) => act::ACT_TABLES_BYTES,
+        }
+    }
+
     /// Bytes of flash the network's arrays take.
     pub fn flash_bytes(&self) -> usize {
         match self {
@@ -858,9 +869,14 @@ pub fn sram_budget(path: &std::path::Path) -> anyhow::Result<SramBudget> {
     })
 }
 
-/// Chooses where each of the model's arrays lives. `auto` fills the SRAM budget in the
-/// order of what a tick reads most: the network, then the rigid-body model, then the
-/// linear stage; each goes to SRAM when it fits what is left, to flash otherwise.
+/// Chooses where each of the model's arrays lives, and the activation tables its
+/// network reads. `auto` fills the SRAM budget in the order of what a tick reads most:
+/// the network, then the rigid-body model, then the linear stage; each goes to SRAM
+/// when it fits what is left, to flash otherwise. The activation tables (an integer
+/// network's; an f32 network reads none) go to SRAM when they fit what the arrays
+/// left, with `auto` and with `sram` (which puts the arrays in SRAM or fails), to
+/// flash otherwise; with `flash` everything stays in flash, and without a budget
+/// `sram` puts the tables in SRAM too.
 pub fn choose_placement(
     want: WeightsIn,
     bytes: ModelBytes,
@@ -888,10 +904,31 @@ pub fn choose_placement(
             })
         }
     };
+    let act_tables = (bytes.act_tables > 0).then(|| match (want, sram_budget_bytes) {
+        (WeightsIn::Flash, _) | (WeightsIn::Auto, None) => Placement::Flash,
+        (WeightsIn::Sram, None) => Placement::Sram,
+        (WeightsIn::Sram | WeightsIn::Auto, Some(b)) => {
+            let in_sram = [
+                (network, bytes.network),
+                (dynamics, bytes.dynamics),
+                (linear_stage, bytes.linear_stage),
+            ]
+            .iter()
+            .filter(|(p, _)| *p == Placement::Sram)
+            .map(|(_, n)| *n as u64)
+            .sum::<u64>();
+            if in_sram + bytes.act_tables as u64 <= b {
+                Placement::Sram
+            } else {
+                Placement::Flash
+            }
+        }
+    });
     Ok(PlacementChoice {
         network,
         dynamics,
         linear_stage,
+        act_tables,
         bytes,
         sram_budget_bytes,
     })
@@ -906,6 +943,9 @@ pub struct ModelBytes {
     pub dynamics: usize,
     /// `LINEAR_STAGE`.
     pub linear_stage: usize,
+    /// The activation tables the network reads (`firmware::nn::act`; 0 when it reads
+    /// none).
+    pub act_tables: usize,
 }
 
 /// Where each of the model's arrays lives, and the budget the choice was weighed against.
@@ -917,6 +957,8 @@ pub struct PlacementChoice {
     pub dynamics: Placement,
     /// `LINEAR_STAGE`.
     pub linear_stage: Placement,
+    /// The activation tables (`Format::ACT_TABLES`); `None` when the network reads none.
+    pub act_tables: Option<Placement>,
     /// Their sizes.
     pub bytes: ModelBytes,
     /// The SRAM budget for the model's arrays [bytes], when a budget file was given.
@@ -934,9 +976,17 @@ impl PlacementChoice {
             Some(b) => format!("SRAM budget for the model {b} bytes"),
             None => "no budget file".to_string(),
         };
+        let tables = match self.act_tables {
+            Some(p) => format!(
+                "activation tables {} bytes in {}",
+                self.bytes.act_tables,
+                at(p)
+            ),
+            None => "no activation tables (f32)".to_string(),
+        };
         format!(
-            "network {} bytes in {}, rigid-body model {} bytes in {}, linear stage {} bytes in {} \
-             (SRAM: .data, copied from flash at reset; flash: .rodata); {budget}",
+            "network {} bytes in {}, rigid-body model {} bytes in {}, linear stage {} bytes in {}, \
+             {tables} (SRAM: .data, copied from flash at reset; flash: .rodata); {budget}",
             self.bytes.network,
             at(self.network),
             self.bytes.dynamics,
@@ -1047,6 +1097,7 @@ fn nested<T: Copy>(flat: &[T], per: usize, f: impl Fn(&T) -> String) -> String {
 fn write_quant<F: WeightFormat>(
     s: &mut String,
     section: &str,
+    tables: Placement,
     n: &QuantNet<F>,
     fmt: &str,
     quad: impl Fn(&F::Quad) -> String,
@@ -1064,8 +1115,9 @@ fn write_quant<F: WeightFormat>(
     );
     let _ = writeln!(
         s,
-        "/// The network's integer format: `{}` weights, the input activation and the \
-         activation-index shifts of its power-of-two scales.",
+        "/// The network's integer format: `{}` weights, the input activation, the \
+         activation-index shifts of its power-of-two scales and the activation tables' \
+         placement.",
         F::NAME
     );
     let _ = writeln!(s, "pub struct Format;");
@@ -1081,6 +1133,15 @@ fn write_quant<F: WeightFormat>(
         s,
         "    const GATE_SHIFTS: [u32; 4] = {};",
         list(&n.gate_shift, |x| x.to_string())
+    );
+    // A closed set of paths (never input text).
+    let tables = match tables {
+        Placement::Sram => "ACT_TABLES_SRAM",
+        Placement::Flash => "ACT_TABLES_FLASH",
+    };
+    let _ = writeln!(
+        s,
+        "    const ACT_TABLES: &'static firmware::nn::act::ActTables = &firmware::nn::act::{tables};"
     );
     let _ = writeln!(s, "}}");
     let _ = writeln!(s, "/// The network's type: sizes from the exporter.");
@@ -1406,6 +1467,7 @@ pub fn render(
         attribute(meta.placement.linear_stage),
     );
     let section = section.as_str();
+    let tables = meta.placement.act_tables.unwrap_or(Placement::Flash);
     let preset = match meta.preset.as_str() {
         "paper" => "Paper",
         "feedforward" => "Feedforward",
@@ -1497,8 +1559,8 @@ pub fn render(
     write_profiles(s, &meta.profiles);
     match net {
         Exported::F32(n) => write_f32(s, &network_section, n),
-        Exported::Int16(n) => write_quant(s, &network_section, n, "I16Weights", quads_i16),
-        Exported::Int8(n) => write_quant(s, &network_section, n, "I8Weights", quads_i8),
+        Exported::Int16(n) => write_quant(s, &network_section, tables, n, "I16Weights", quads_i16),
+        Exported::Int8(n) => write_quant(s, &network_section, tables, n, "I8Weights", quads_i8),
     }
     if let Some(d) = dynamics {
         write_any_dynamics(s, &dynamics_section, d);
@@ -1645,4 +1707,139 @@ pub fn accuracy_markdown(rows: &[AccuracyRow]) -> String {
         );
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use firmware::nn::reference::LstmDims;
+
+    /// The paper int16 network's sizes (68 968 B), and the board's model budget.
+    const PAPER_INT16: ModelBytes = ModelBytes {
+        network: 68_968,
+        dynamics: 808,
+        linear_stage: 324,
+        act_tables: act::ACT_TABLES_BYTES,
+    };
+    const BUDGET: Option<u64> = Some(73_728);
+
+    fn tables(want: WeightsIn, bytes: ModelBytes, budget: Option<u64>) -> Option<Placement> {
+        choose_placement(want, bytes, budget)
+            .expect("placement")
+            .act_tables
+    }
+
+    #[test]
+    fn the_tables_go_to_sram_only_when_they_fit_beside_the_arrays() {
+        // 68 968 + 808 + 324 + 32 768 > 73 728: the tables stay in flash.
+        assert_eq!(
+            tables(WeightsIn::Auto, PAPER_INT16, BUDGET),
+            Some(Placement::Flash)
+        );
+        // The per-joint network (4 728 B): everything fits.
+        let joint = ModelBytes {
+            network: 4_728,
+            dynamics: 0,
+            linear_stage: 108,
+            ..PAPER_INT16
+        };
+        let p = choose_placement(WeightsIn::Auto, joint, BUDGET).expect("placement");
+        assert_eq!(
+            (p.network, p.linear_stage, p.act_tables),
+            (Placement::Sram, Placement::Sram, Some(Placement::Sram))
+        );
+        assert!(
+            p.describe()
+                .contains("activation tables 32768 bytes in SRAM")
+        );
+        // Exactly at the budget fits; one byte over does not.
+        let exact = ModelBytes {
+            network: 73_728 - 32_768,
+            dynamics: 0,
+            linear_stage: 0,
+            ..PAPER_INT16
+        };
+        assert_eq!(
+            tables(WeightsIn::Auto, exact, BUDGET),
+            Some(Placement::Sram)
+        );
+        let over = ModelBytes {
+            network: exact.network + 1,
+            ..exact
+        };
+        assert_eq!(
+            tables(WeightsIn::Auto, over, BUDGET),
+            Some(Placement::Flash)
+        );
+        // A network too big for SRAM leaves the room to the tables.
+        let f32_sized = ModelBytes {
+            network: 135_800,
+            ..joint
+        };
+        let p = choose_placement(WeightsIn::Auto, f32_sized, BUDGET).expect("placement");
+        assert_eq!(
+            (p.network, p.act_tables),
+            (Placement::Flash, Some(Placement::Sram))
+        );
+    }
+
+    #[test]
+    fn forced_and_unbudgeted_choices_place_the_tables_with_the_arrays() {
+        let joint = ModelBytes {
+            network: 4_728,
+            dynamics: 0,
+            linear_stage: 108,
+            ..PAPER_INT16
+        };
+        assert_eq!(
+            tables(WeightsIn::Flash, joint, BUDGET),
+            Some(Placement::Flash)
+        );
+        assert_eq!(tables(WeightsIn::Auto, joint, None), Some(Placement::Flash));
+        assert_eq!(tables(WeightsIn::Sram, joint, None), Some(Placement::Sram));
+        assert_eq!(
+            tables(WeightsIn::Sram, joint, BUDGET),
+            Some(Placement::Sram)
+        );
+        // `sram` keeps the arrays in SRAM and the tables where they fit.
+        assert_eq!(
+            tables(WeightsIn::Sram, PAPER_INT16, BUDGET),
+            Some(Placement::Flash)
+        );
+        // An f32 network reads no tables.
+        let f32_net = ModelBytes {
+            act_tables: 0,
+            ..joint
+        };
+        let p = choose_placement(WeightsIn::Auto, f32_net, BUDGET).expect("placement");
+        assert_eq!(p.act_tables, None);
+        assert!(p.describe().contains("no activation tables (f32)"));
+    }
+
+    #[test]
+    fn the_generated_format_names_the_chosen_tables() {
+        let m = LstmModel::init(
+            LstmDims {
+                input: 3,
+                embed: 4,
+                hidden: 4,
+                output: 1,
+            },
+            5,
+        );
+        let net = QuantNet::<I16Weights>::quantise(&m).expect("quantises");
+        for (p, name) in [
+            (Placement::Sram, "&firmware::nn::act::ACT_TABLES_SRAM;"),
+            (Placement::Flash, "&firmware::nn::act::ACT_TABLES_FLASH;"),
+        ] {
+            let mut s = String::new();
+            write_quant(&mut s, "", p, &net, "I16Weights", quads_i16);
+            let line = s
+                .lines()
+                .find(|l| l.contains("const ACT_TABLES"))
+                .expect("the format names its tables");
+            assert!(line.ends_with(name), "{line}");
+        }
+        assert_eq!(Exported::Int16(net).act_tables_bytes(), 32_768);
+    }
 }

@@ -187,6 +187,8 @@ pub struct QuantView<'a, F: WeightFormat> {
     pub gate_bias: &'a [[i32; 4]],
     /// Activation-index shifts of the gates ([`QuantFormat::GATE_SHIFTS`]).
     pub gate_shift: [u32; 4],
+    /// The activation tables ([`QuantFormat::ACT_TABLES`]).
+    pub act_tables: &'a act::ActTables,
     /// `[OB * HQ]` output layer.
     pub out_w: &'a [F::Quad],
     /// `[OB]` output scale.
@@ -296,7 +298,7 @@ impl<F: WeightFormat> QuantView<'_, F> {
                 if linear {
                     act::linear_i16(a, self.in_shift)
                 } else {
-                    act::tanh_q15(a, self.in_shift)
+                    act::tanh_q15(self.act_tables, a, self.in_shift)
                 }
             });
             *zq_e = [dsp::pack(e[0], e[1]), dsp::pack(e[2], e[3])];
@@ -310,8 +312,8 @@ impl<F: WeightFormat> QuantView<'_, F> {
             .zip(c.chunks_exact_mut(2))
             .zip(h_new.as_flattened_mut());
         for ((a2, c2), hw) in cells {
-            let h0 = cell_update(&a2[0], &self.gate_shift, &mut c2[0]);
-            let h1 = cell_update(&a2[1], &self.gate_shift, &mut c2[1]);
+            let h0 = cell_update(self.act_tables, &a2[0], &self.gate_shift, &mut c2[0]);
+            let h1 = cell_update(self.act_tables, &a2[1], &self.gate_shift, &mut c2[1]);
             *hw = dsp::pack(h0, h1);
         }
         if let Some(hz) = z.get_mut(d.embed_blocks..) {
@@ -323,22 +325,22 @@ impl<F: WeightFormat> QuantView<'_, F> {
     }
 }
 
-/// One LSTM cell from its four gate accumulators (i, f, g, o) and their index
-/// shifts: updates the int16 Q4.11 cell state `c` (rounded, saturating) and returns
+/// One LSTM cell from its four gate accumulators (i, f, g, o), their index shifts and
+/// the activation tables: updates the int16 Q4.11 cell state `c` (rounded, saturating) and returns
 /// the Q0.15 hidden value (the instruction sequence of `dsp::lstm_small_i16`'s cell,
 /// see the module docs). No intermediate can overflow: `|c * f| <= 2^30`,
 /// `|i * g| >> 4 <= 2^26`.
 #[inline(always)]
-pub fn cell_update(acc: &[i32; 4], shift: &[u32; 4], c: &mut i16) -> i16 {
-    let i = act::sigmoid_q15(acc[0], shift[0]) as i32;
-    let f = act::sigmoid_q15(acc[1], shift[1]) as i32;
-    let g = act::tanh_q15(acc[2], shift[2]) as i32;
-    let o = act::sigmoid_q15(acc[3], shift[3]) as i32;
+pub fn cell_update(tables: &act::ActTables, acc: &[i32; 4], shift: &[u32; 4], c: &mut i16) -> i16 {
+    let i = act::sigmoid_q15(tables, acc[0], shift[0]) as i32;
+    let f = act::sigmoid_q15(tables, acc[1], shift[1]) as i32;
+    let g = act::tanh_q15(tables, acc[2], shift[2]) as i32;
+    let o = act::sigmoid_q15(tables, acc[3], shift[3]) as i32;
     // SMLABB (c * f + round), SMULBB (i * g), ADD with ASR, SSAT #16 with ASR #15.
     let sum = *c as i32 * f + CELL_ROUND + ((i * g) >> CELL_IG_SHIFT);
     let cn = (sum >> ACT_FRAC_BITS).clamp(i16::MIN as i32, i16::MAX as i32) as i16;
     *c = cn;
-    let tc = act::tanh_q15(cn as i32, CELL_TANH_SHIFT) as i32;
+    let tc = act::tanh_q15(tables, cn as i32, CELL_TANH_SHIFT) as i32;
     ((o * tc) >> 15) as i16
 }
 
@@ -445,6 +447,7 @@ impl<
             gate_w: self.gate_w.as_flattened(),
             gate_bias: &self.gate_bias,
             gate_shift: F::GATE_SHIFTS,
+            act_tables: F::ACT_TABLES,
             out_w: self.out_w.as_flattened(),
             out_scale: &self.out_scale,
             out_offset: &self.out_offset,
@@ -832,6 +835,8 @@ mod tests {
 
     /// Gate accumulators with index shift 1: value `acc / 1024`.
     const SHIFTS: [u32; 4] = [1; 4];
+    /// The tables (either placement holds the same values).
+    const T: &act::ActTables = &act::ACT_TABLES_FLASH;
 
     #[test]
     fn cell_update_rounds_to_nearest_q4_11() {
@@ -841,13 +846,13 @@ mod tests {
             for &b in &accs {
                 for &c0 in &cells {
                     let acc = [a, b, -a / 2, b / 3];
-                    let i = act::sigmoid_q15(acc[0], 1) as f64;
-                    let f = act::sigmoid_q15(acc[1], 1) as f64;
-                    let g = act::tanh_q15(acc[2], 1) as f64;
+                    let i = act::sigmoid_q15(T, acc[0], 1) as f64;
+                    let f = act::sigmoid_q15(T, acc[1], 1) as f64;
+                    let g = act::tanh_q15(T, acc[2], 1) as f64;
                     // c' in Q4.11 units, exact: c f / 2^15 + i g / 2^19.
                     let exact = c0 as f64 * f / 32768.0 + i * g / 524288.0;
                     let mut c = c0;
-                    cell_update(&acc, &SHIFTS, &mut c);
+                    cell_update(T, &acc, &SHIFTS, &mut c);
                     let want = exact.clamp(i16::MIN as f64, i16::MAX as f64);
                     assert!(
                         (c as f64 - want).abs() <= 0.5 + 1.0 / 32768.0,
@@ -863,10 +868,10 @@ mod tests {
         // i, f, o ~ 1 and g ~ +-1 push c past +-16.
         for (g_acc, end) in [(9000, i16::MAX), (-9000, i16::MIN)] {
             let mut c = end;
-            let h = cell_update(&[9000, 9000, g_acc, 9000], &SHIFTS, &mut c);
+            let h = cell_update(T, &[9000, 9000, g_acc, 9000], &SHIFTS, &mut c);
             assert_eq!(c, end);
-            let o_tanh = act::sigmoid_q15(9000, 1) as i32
-                * act::tanh_q15(end as i32, CELL_TANH_SHIFT) as i32;
+            let o_tanh = act::sigmoid_q15(T, 9000, 1) as i32
+                * act::tanh_q15(T, end as i32, CELL_TANH_SHIFT) as i32;
             assert_eq!(h as i32, o_tanh >> 15);
         }
     }

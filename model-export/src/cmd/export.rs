@@ -276,6 +276,7 @@ pub fn render_export(m: &LstmModel, a: &ExportArgs) -> Result<(Exported, Placeme
         network: net.flash_bytes(),
         dynamics: dynamics.as_ref().map_or(0, dynamics_bytes),
         linear_stage: m.dims.output * firmware::features::FRICTION_FEATURES * 4,
+        act_tables: net.act_tables_bytes(),
     };
     let placement = choose_placement(a.weights_in, bytes, sram.map(|b| b.model_bytes()))?;
     let meta = ExportMeta {
