@@ -8,7 +8,7 @@
 //! |---|---|---|---|---|
 //! | [`F32Lstm`] | f32 | f32 | f32, sequential per row | `dsp::matvec4_f32`, `math::sigmoid_fast` / `tanh_fast` |
 //! | [`QuantLstm`] with [`I16Weights`] | int16, per-gate power-of-two scale | int16 | i32 (SMLAD) | `dsp::lstm_small_i16` (`[e; h]` of at most 16 words), else `dsp::matvec4_i16` |
-//! | [`QuantLstm`] with [`I8Weights`] | int8, per-gate power-of-two scale | int16 | i32 (SXTB16 + SMLAD) | `dsp::dot4_i8` |
+//! | [`QuantLstm`] with [`I8Weights`] | int8, per-gate power-of-two scale | int16 | i32 (SXTB16 + SMLAD) | `dsp::matvec4_i8` (gates), `dsp::dot4_i8` |
 //!
 //! # Integer scheme (in the spirit of CMSIS-NN's q15 kernels and TFLM's int16x8 LSTM)
 //!
@@ -114,6 +114,10 @@ impl WeightFormat for I8Weights {
     #[inline(always)]
     fn dot4(acc: [i32; 4], w: &[Self::Quad], x: &[[u32; 2]]) -> [i32; 4] {
         dsp::dot4_i8(acc, w, x)
+    }
+    #[inline(always)]
+    fn matvec4(acc: &mut [[i32; 4]], bias: &[[i32; 4]], w: &[Self::Quad], x: &[[u32; 2]]) {
+        dsp::matvec4_i8(acc, bias, w, x)
     }
     fn pack(w: [[i32; 4]; 4]) -> Self::Quad {
         w.map(|row| dsp::pack_i8(row.map(|v| v as i8)))
