@@ -233,12 +233,69 @@ pub fn matvec4_f32(out: &mut [[f32; 4]], w: &[[f32; 4]], x: &[f32]) {
     #[cfg(fw_dsp_asm)]
     {
         // SAFETY: blocks > 0 blocks of n > 0 columns of `w`, n values of `x`, blocks
-        // outputs, all in bounds by the computation above.
-        unsafe { asm::matvec4_f32(out.as_mut_ptr(), w.as_ptr(), x.as_ptr(), n, blocks) }
+        // outputs, all in bounds by the computation above; no second part.
+        unsafe {
+            asm::matvec4_f32(
+                out.as_mut_ptr(),
+                w.as_ptr(),
+                blocks,
+                w.as_ptr(),
+                0,
+                x.as_ptr(),
+                n,
+            )
+        }
     }
     #[cfg(not(fw_dsp_asm))]
     {
         portable::matvec4_f32(&mut out[..blocks], w, x)
+    }
+}
+
+/// [`matvec4_f32`] over a layer whose blocks are stored in two parts (`head`: the first
+/// blocks, `tail`: the rest, e.g. one in SRAM and one in flash): `out[b]` from block
+/// `b` of `head` and then of `tail`, the same bits as one layer; `min(out.len(),
+/// head.len() / N + tail.len() / N)` blocks. One assembly block for both parts (the
+/// switch from one to the other costs a few cycles per layer, not per block).
+#[inline(always)]
+pub fn matvec4_f32_parts(out: &mut [[f32; 4]], head: &[[f32; 4]], tail: &[[f32; 4]], x: &[f32]) {
+    let n = x.len();
+    if n == 0 {
+        out.fill([0.0; 4]);
+        return;
+    }
+    let head_blocks = out.len().min(head.len() / n);
+    let tail_blocks = (out.len() - head_blocks).min(tail.len() / n);
+    #[cfg(fw_dsp_asm)]
+    {
+        let (first, first_blocks, second, second_blocks) = if head_blocks > 0 {
+            (head, head_blocks, tail, tail_blocks)
+        } else {
+            (tail, tail_blocks, head, 0)
+        };
+        if first_blocks == 0 {
+            return;
+        }
+        // SAFETY: first_blocks > 0 blocks of n > 0 columns of `first`, second_blocks
+        // of `second`, n values of `x`, first_blocks + second_blocks <= out.len()
+        // outputs, all in bounds by the computation above.
+        unsafe {
+            asm::matvec4_f32(
+                out.as_mut_ptr(),
+                first.as_ptr(),
+                first_blocks,
+                second.as_ptr(),
+                second_blocks,
+                x.as_ptr(),
+                n,
+            )
+        }
+    }
+    #[cfg(not(fw_dsp_asm))]
+    {
+        let (out_head, out_tail) = out.split_at_mut(head_blocks);
+        portable::matvec4_f32(out_head, head, x);
+        portable::matvec4_f32(&mut out_tail[..tail_blocks], tail, x);
     }
 }
 
@@ -848,24 +905,29 @@ mod asm {
     /// The f32 layer: per block, accumulators s0-s3 from +0.0, `n / 8` iterations
     /// of 8 columns (VLDM of 8 inputs into s4-s11, two VLDM of 16 weights into
     /// s12-s27, products in s28-s31), then `n % 8` single columns; VSTM of s0-s3.
-    /// All 32 FPU registers are saved and restored inside the block (VPUSH/VPOP of
-    /// d0-d15, once per layer).
+    /// The blocks come from two parts: `blocks` of `w`, then `blocks2` of `w2` (the
+    /// weight pointer and the count switch once, after the first part). All 32 FPU
+    /// registers are saved and restored inside the block (VPUSH/VPOP of d0-d15, once
+    /// per layer).
     ///
     /// # Safety
-    /// `out` valid for `blocks > 0` blocks (written), `w` for `blocks * n` columns,
-    /// `x` for `n > 0` values.
+    /// `out` valid for `blocks + blocks2` blocks (written), `blocks > 0`, `w` for
+    /// `blocks * n` columns, `w2` for `blocks2 * n`, `x` for `n > 0` values.
     #[inline(always)]
     pub unsafe fn matvec4_f32(
         out: *mut [f32; 4],
         w: *const [f32; 4],
+        blocks: usize,
+        w2: *const [f32; 4],
+        blocks2: usize,
         x: *const f32,
         n: usize,
-        blocks: usize,
     ) {
         // SAFETY (caller: pointers valid as documented): per block the loops read n
-        // values of `x` and n columns of `w` (w advances block after block) and write
-        // one `[f32; 4]` of `out`; every FPU register is pushed before and popped
-        // after; sp is restored; only declared core registers and the flags change.
+        // values of `x` and n columns of `w` or `w2` (each advances block after block)
+        // and write one `[f32; 4]` of `out`; every FPU register is pushed before and
+        // popped after; sp is restored; only declared core registers and the flags
+        // change.
         unsafe {
             asm!(
                 "vpush {{d0-d15}}",
@@ -904,12 +966,21 @@ mod asm {
                 "vstmia {op}!, {{s0-s3}}",
                 "subs {nb}, {nb}, #1",
                 "bne 2b",
+                // The second part, if any: its blocks and weights, once.
+                "movs {nb}, {nb2}",
+                "beq 7f",
+                "mov {wp}, {wp2}",
+                "movs {nb2}, #0",
+                "b 2b",
+                "7:",
                 "vpop {{d0-d15}}",
                 op = inout(reg) out => _,
                 wp = inout(reg) w => _,
+                wp2 = in(reg) w2,
                 xb = in(reg) x,
                 n = in(reg) n,
                 nb = inout(reg) blocks => _,
+                nb2 = inout(reg) blocks2 => _,
                 xp = out(reg) _,
                 k = out(reg) _,
             );
@@ -1398,6 +1469,17 @@ mod tests {
                 out[b].map(f32::to_bits),
                 want.map(f32::to_bits),
                 "block {b}"
+            );
+        }
+        // The same layer from two parts: the same bits, whichever split.
+        for split in 0..=2 {
+            let mut parts = [[9.0f32; 4]; 2];
+            let (head, tail) = wf.split_at(split * N);
+            matvec4_f32_parts(&mut parts, head, tail, &xf);
+            assert_eq!(
+                parts.map(|b| b.map(f32::to_bits)),
+                out.map(|b| b.map(f32::to_bits)),
+                "split after {split} blocks"
             );
         }
         let mut none = [[1.0f32; 4]; 1];

@@ -616,6 +616,7 @@ impl F32Net {
             b_in: &self.b_in,
             input_activation: self.input_activation,
             w_gates: &self.w_gates,
+            w_gates_tail: &[],
             b_gates: &self.b_gates,
             w_out: &self.w_out,
             b_out: &self.b_out,
@@ -693,6 +694,18 @@ impl Exported {
             Exported::F32(n) => n.input_activation,
             Exported::Int16(n) => n.in_activation,
             Exported::Int8(n) => n.in_activation,
+        }
+    }
+
+    /// Bytes of one block of the gate matrix and the number of blocks, when the network
+    /// can place the first blocks apart from the rest (f32: `F32GateRows`), else `(0, 0)`.
+    pub fn gate_blocks(&self) -> (usize, usize) {
+        match self {
+            Exported::F32(n) => {
+                let z = 4 * n.dims.embed_blocks + n.dims.hidden;
+                (z * 16, n.dims.hidden)
+            }
+            Exported::Int16(_) | Exported::Int8(_) => (0, 0),
         }
     }
 
@@ -904,19 +917,28 @@ pub fn choose_placement(
             })
         }
     };
+    let arrays_in_sram = [
+        (network, bytes.network),
+        (dynamics, bytes.dynamics),
+        (linear_stage, bytes.linear_stage),
+    ]
+    .iter()
+    .filter(|(p, _)| *p == Placement::Sram)
+    .map(|(_, n)| *n as u64)
+    .sum::<u64>();
+    // A network too big for SRAM: the first blocks of its gate matrix fill what is left.
+    let gate_blocks_in_sram = match (want, sram_budget_bytes, network) {
+        (WeightsIn::Auto, Some(b), Placement::Flash) if bytes.gate_block > 0 => {
+            let left = b.saturating_sub(arrays_in_sram);
+            ((left / bytes.gate_block as u64) as usize).min(bytes.gate_blocks)
+        }
+        _ => 0,
+    };
+    let in_sram = arrays_in_sram + (gate_blocks_in_sram * bytes.gate_block) as u64;
     let act_tables = (bytes.act_tables > 0).then(|| match (want, sram_budget_bytes) {
         (WeightsIn::Flash, _) | (WeightsIn::Auto, None) => Placement::Flash,
         (WeightsIn::Sram, None) => Placement::Sram,
         (WeightsIn::Sram | WeightsIn::Auto, Some(b)) => {
-            let in_sram = [
-                (network, bytes.network),
-                (dynamics, bytes.dynamics),
-                (linear_stage, bytes.linear_stage),
-            ]
-            .iter()
-            .filter(|(p, _)| *p == Placement::Sram)
-            .map(|(_, n)| *n as u64)
-            .sum::<u64>();
             if in_sram + bytes.act_tables as u64 <= b {
                 Placement::Sram
             } else {
@@ -929,6 +951,7 @@ pub fn choose_placement(
         dynamics,
         linear_stage,
         act_tables,
+        gate_blocks_in_sram,
         bytes,
         sram_budget_bytes,
     })
@@ -946,6 +969,12 @@ pub struct ModelBytes {
     /// The activation tables the network reads (`firmware::nn::act`; 0 when it reads
     /// none).
     pub act_tables: usize,
+    /// Bytes of one block of the gate matrix when the network can place the first
+    /// blocks of its gate matrix in SRAM apart from the rest (`F32GateRows`, f32
+    /// networks), else 0.
+    pub gate_block: usize,
+    /// Blocks of the gate matrix (`H`).
+    pub gate_blocks: usize,
 }
 
 /// Where each of the model's arrays lives, and the budget the choice was weighed against.
@@ -959,6 +988,9 @@ pub struct PlacementChoice {
     pub linear_stage: Placement,
     /// The activation tables (`Format::ACT_TABLES`); `None` when the network reads none.
     pub act_tables: Option<Placement>,
+    /// With the network in flash: the first blocks of its gate matrix placed in SRAM
+    /// (`GATES_HEAD`; 0 for none, always 0 for an integer network).
+    pub gate_blocks_in_sram: usize,
     /// Their sizes.
     pub bytes: ModelBytes,
     /// The SRAM budget for the model's arrays [bytes], when a budget file was given.
@@ -984,8 +1016,16 @@ impl PlacementChoice {
             ),
             None => "no activation tables (f32)".to_string(),
         };
+        let split = match self.gate_blocks_in_sram {
+            0 => String::new(),
+            k => format!(
+                " (its gate matrix's first {k} of {} blocks, {} bytes, in SRAM)",
+                self.bytes.gate_blocks,
+                k * self.bytes.gate_block
+            ),
+        };
         format!(
-            "network {} bytes in {}, rigid-body model {} bytes in {}, linear stage {} bytes in {}, \
+            "network {} bytes in {}{split}, rigid-body model {} bytes in {}, linear stage {} bytes in {}, \
              {tables} (SRAM: .data, copied from flash at reset; flash: .rodata); {budget}",
             self.bytes.network,
             at(self.network),
@@ -1090,6 +1130,9 @@ fn quads_i8(q: &[u32; 4]) -> String {
 }
 
 fn nested<T: Copy>(flat: &[T], per: usize, f: impl Fn(&T) -> String) -> String {
+    if flat.is_empty() {
+        return "[]".into();
+    }
     let chunks: Vec<String> = flat.chunks(per.max(1)).map(|c| list(c, &f)).collect();
     format!("[\n    {}\n]", chunks.join(",\n    "))
 }
@@ -1207,7 +1250,9 @@ fn input_layer_type(a: InputActivation) -> &'static str {
     }
 }
 
-fn write_f32(s: &mut String, section: &str, n: &F32Net) {
+/// `head_blocks`: how many blocks of the gate matrix go to `GATES_HEAD` (placed by
+/// `head_section`); the rest go to `GATES_TAIL`, placed with the network (`section`).
+fn write_f32(s: &mut String, section: &str, head_section: &str, head_blocks: usize, n: &F32Net) {
     let d = n.dims;
     let (i, eb, h, o, ob) = (d.input, d.embed_blocks, d.hidden, d.output, d.output_blocks);
     let e = 4 * eb;
@@ -1224,6 +1269,39 @@ fn write_f32(s: &mut String, section: &str, n: &F32Net) {
     );
     let _ = writeln!(s, "/// The network's recurrent state.");
     let _ = writeln!(s, "pub type State = F32State<{z}, {h}>;");
+    let head_blocks = head_blocks.min(h);
+    let (head, tail) = n.w_gates.split_at((head_blocks * z).min(n.w_gates.len()));
+    let _ = writeln!(
+        s,
+        "/// The gate matrix's first {head_blocks} blocks ({} bytes; `F32GateRows`).",
+        head.len() * 16
+    );
+    let head_section = if head.is_empty() { "" } else { head_section };
+    let _ = write!(s, "{head_section}");
+    let _ = writeln!(
+        s,
+        "pub static GATES_HEAD: [[[f32; 4]; {z}]; {head_blocks}] = {};",
+        nested(head, z, v4)
+    );
+    let _ = writeln!(
+        s,
+        "/// The gate matrix's other {} blocks ({} bytes).",
+        h - head_blocks,
+        tail.len() * 16
+    );
+    // An empty part needs no placement.
+    let tail_section = if tail.is_empty() { "" } else { section };
+    let _ = write!(s, "{tail_section}");
+    let _ = writeln!(
+        s,
+        "pub static GATES_TAIL: [[[f32; 4]; {z}]; {}] = {};",
+        h - head_blocks,
+        nested(tail, z, v4)
+    );
+    let _ = writeln!(
+        s,
+        "const _: () = assert!(GATES_HEAD.len() + GATES_TAIL.len() == {h}, \"the gate matrix has H blocks\");"
+    );
     let _ = writeln!(s, "/// The network.");
     let _ = write!(s, "{section}");
     let _ = writeln!(s, "pub static NETWORK: Network = F32Lstm {{");
@@ -1240,7 +1318,10 @@ fn write_f32(s: &mut String, section: &str, n: &F32Net) {
     let _ = writeln!(s, "    w_in: {},", nested(&n.w_in, i, v4));
     let _ = writeln!(s, "    b_in: {},", list(&n.b_in, v4));
     let _ = writeln!(s, "    input_layer: {layer},");
-    let _ = writeln!(s, "    w_gates: {},", nested(&n.w_gates, z, v4));
+    let _ = writeln!(
+        s,
+        "    w_gates: F32GateRows {{ head: &GATES_HEAD, tail: &GATES_TAIL }},"
+    );
     let _ = writeln!(s, "    b_gates: {},", list(&n.b_gates, v4));
     let _ = writeln!(s, "    w_out: {},", nested(&n.w_out, h, v4));
     let _ = writeln!(s, "    b_out: {},", list(&n.b_out, v4));
@@ -1558,7 +1639,17 @@ pub fn render(
     );
     write_profiles(s, &meta.profiles);
     match net {
-        Exported::F32(n) => write_f32(s, &network_section, n),
+        Exported::F32(n) => {
+            // The whole gate matrix goes with the network, or its first blocks to SRAM.
+            let (head_section, head_blocks) = match meta.placement.network {
+                Placement::Sram => (network_section.clone(), n.dims.hidden),
+                Placement::Flash => (
+                    attribute(Placement::Sram),
+                    meta.placement.gate_blocks_in_sram,
+                ),
+            };
+            write_f32(s, &network_section, &head_section, head_blocks, n)
+        }
         Exported::Int16(n) => write_quant(s, &network_section, tables, n, "I16Weights", quads_i16),
         Exported::Int8(n) => write_quant(s, &network_section, tables, n, "I8Weights", quads_i8),
     }
@@ -1624,7 +1715,7 @@ pub fn render(
     let _ = writeln!(out, "#[allow(unused_imports)]");
     let _ = writeln!(
         out,
-        "use firmware::nn::kernels::{{F32Lstm, F32State, LinearInput, QuantLstm, TanhInput}};"
+        "use firmware::nn::kernels::{{F32GateRows, F32Lstm, F32State, LinearInput, QuantLstm, TanhInput}};"
     );
     let _ = writeln!(
         out,
@@ -1720,6 +1811,8 @@ mod tests {
         dynamics: 808,
         linear_stage: 324,
         act_tables: act::ACT_TABLES_BYTES,
+        gate_block: 0,
+        gate_blocks: 0,
     };
     const BUDGET: Option<u64> = Some(73_728);
 
@@ -1781,6 +1874,71 @@ mod tests {
             (p.network, p.act_tables),
             (Placement::Flash, Some(Placement::Sram))
         );
+    }
+
+    #[test]
+    fn an_f32_network_too_big_for_sram_puts_its_first_gate_blocks_there() {
+        // The paper f32 network: 135 800 B, 64 gate blocks of 128 columns (2 048 B).
+        let paper_f32 = ModelBytes {
+            network: 135_800,
+            dynamics: 808,
+            linear_stage: 324,
+            act_tables: 0,
+            gate_block: 2_048,
+            gate_blocks: 64,
+        };
+        let p = choose_placement(WeightsIn::Auto, paper_f32, BUDGET).expect("placement");
+        // (73 728 - 808 - 324) / 2 048 = 35 blocks.
+        assert_eq!(
+            (p.network, p.dynamics, p.linear_stage, p.gate_blocks_in_sram),
+            (Placement::Flash, Placement::Sram, Placement::Sram, 35)
+        );
+        assert!(
+            p.describe()
+                .contains("(its gate matrix's first 35 of 64 blocks, 71680 bytes, in SRAM)"),
+            "{}",
+            p.describe()
+        );
+        for (want, budget) in [(WeightsIn::Flash, BUDGET), (WeightsIn::Auto, None)] {
+            let p = choose_placement(want, paper_f32, budget).expect("placement");
+            assert_eq!(p.gate_blocks_in_sram, 0);
+        }
+        // A network that fits keeps its gate matrix whole (with the network).
+        let small = ModelBytes {
+            network: 3_192,
+            ..paper_f32
+        };
+        let p = choose_placement(WeightsIn::Auto, small, BUDGET).expect("placement");
+        assert_eq!((p.network, p.gate_blocks_in_sram), (Placement::Sram, 0));
+    }
+
+    #[test]
+    fn the_generated_f32_network_splits_its_gate_matrix_between_two_statics() {
+        let m = LstmModel::init(
+            LstmDims {
+                input: 3,
+                embed: 4,
+                hidden: 8,
+                output: 1,
+            },
+            5,
+        );
+        let net = F32Net::arrange(&m).expect("arranges");
+        let sram = format!("{SRAM_SECTION_ATTRIBUTE}\n");
+        let mut s = String::new();
+        write_f32(&mut s, "", &sram, 3, &net);
+        assert!(s.contains(&format!(
+            "{sram}pub static GATES_HEAD: [[[f32; 4]; 12]; 3] = "
+        )));
+        assert!(s.contains("\npub static GATES_TAIL: [[[f32; 4]; 12]; 5] = "));
+        assert!(!s.contains(&format!("{sram}pub static GATES_TAIL")));
+        assert!(s.contains("w_gates: F32GateRows { head: &GATES_HEAD, tail: &GATES_TAIL },"));
+        // Nothing in SRAM: no attribute for the empty head.
+        let mut s = String::new();
+        write_f32(&mut s, "", "", 0, &net);
+        assert!(s.contains("pub static GATES_HEAD: [[[f32; 4]; 12]; 0] = [];"));
+        assert!(!s.contains("link_section"));
+        assert_eq!(Exported::F32(net).gate_blocks(), (12 * 16, 8));
     }
 
     #[test]

@@ -6,7 +6,7 @@ use firmware::dynamics::{JointModel, RigidBodyModel};
 #[allow(unused_imports)]
 use firmware::nn::format::{FeaturePreset, I8Weights, I16Weights, InputActivation, Precision, QuantFormat, QuantState};
 #[allow(unused_imports)]
-use firmware::nn::kernels::{F32Lstm, F32State, LinearInput, QuantLstm, TanhInput};
+use firmware::nn::kernels::{F32GateRows, F32Lstm, F32State, LinearInput, QuantLstm, TanhInput};
 /// SHA-256 (first 8 bytes) of everything below this line.
 pub const CONTENT_HASH: u64 = 0x3cd8e18e081f8461;
 /// Layout version of this file (`fw_export::SCHEMA_VERSION`).

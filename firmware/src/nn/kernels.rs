@@ -6,7 +6,7 @@
 //!
 //! | precision | weights | activations | accumulator | kernel |
 //! |---|---|---|---|---|
-//! | [`F32Lstm`] | f32 | f32 | f32, sequential per row | `dsp::matvec4_f32`, `math::sigmoid_fast` / `tanh_fast` |
+//! | [`F32Lstm`] | f32 | f32 | f32, sequential per row | `dsp::matvec4_f32` (input layer), `dsp::matvec4_f32_parts` (gates, [`F32GateRows`]), `math::sigmoid_fast` / `tanh_fast` |
 //! | [`QuantLstm`] with [`I16Weights`] | int16, per-gate power-of-two scale | int16 | i32 (SMLAD) | `dsp::lstm_small_i16` (`[e; h]` of at most 16 words), else `dsp::matvec4_i16` |
 //! | [`QuantLstm`] with [`I8Weights`] | int8, per-gate power-of-two scale | int16 | i32 (SXTB16 + SMLAD) | `dsp::matvec4_i8` (gates), `dsp::dot4_i8` |
 //!
@@ -533,8 +533,11 @@ pub struct F32View<'a> {
     pub b_in: &'a [[f32; 4]],
     /// Activation after the input layer.
     pub input_activation: InputActivation,
-    /// `[H * Z]`, `Z = E + H`.
+    /// The first blocks of the gate matrix (`[HS * Z]`, `Z = E + H`): with
+    /// [`Self::w_gates_tail`] the `[H * Z]` gate matrix ([`F32GateRows`]).
     pub w_gates: &'a [[f32; 4]],
+    /// The other `H - HS` blocks of the gate matrix (`[(H - HS) * Z]`).
+    pub w_gates_tail: &'a [[f32; 4]],
     /// `[H]`
     pub b_gates: &'a [[f32; 4]],
     /// `[OB * H]`
@@ -564,7 +567,11 @@ impl F32View<'_> {
             ("input_inv_std", d.input, self.input_inv_std.len()),
             ("w_in", d.embed_blocks * d.input, self.w_in.len()),
             ("b_in", d.embed_blocks, self.b_in.len()),
-            ("w_gates", d.hidden * z, self.w_gates.len()),
+            (
+                "w_gates",
+                d.hidden * z,
+                self.w_gates.len() + self.w_gates_tail.len(),
+            ),
             ("b_gates", d.hidden, self.b_gates.len()),
             ("w_out", d.output_blocks * d.hidden, self.w_out.len()),
             ("b_out", d.output_blocks, self.b_out.len()),
@@ -613,13 +620,16 @@ impl F32View<'_> {
             let v = [e[0] + b[0], e[1] + b[1], e[2] + b[2], e[3] + b[3]];
             *e = if linear { v } else { math::tanh_fast4(v) };
         }
-        // LSTM gates: the whole layer in one kernel call, then the cells.
+        // LSTM gates: the whole layer in one kernel call per part of the gate matrix
+        // (each block only reads its own rows), then the cells.
         let z_in: &[f32] = z;
-        dsp::matvec4_f32(
+        dsp::matvec4_f32_parts(
             acc,
             self.w_gates,
+            self.w_gates_tail,
             z_in.get(..e_len + d.hidden).unwrap_or(z_in),
         );
+        let acc: &[[f32; 4]] = acc;
         // The cells: first each cell's gates and new c (`h_new` holds o for now), then
         // h = o tanh(c) four cells at a time (the same bits as one at a time).
         let rows = acc.iter().zip(self.b_gates);
@@ -687,6 +697,20 @@ impl InputLayer for LinearInput {
     const ACTIVATION: InputActivation = InputActivation::Linear;
 }
 
+/// The gate matrix of a compiled-in f32 network, `H` blocks over `Z` columns (block
+/// `j` = rows `i_j, f_j, g_j, o_j`, column-interleaved), as two statics so that the
+/// exporter can place them apart: the first blocks (`head`) in SRAM and the rest
+/// (`tail`) in flash when the whole matrix does not fit the board's SRAM budget (one
+/// of them is empty otherwise). The generated file asserts at compile time that
+/// together they hold `H` blocks.
+#[derive(Clone, Copy, Debug)]
+pub struct F32GateRows<const Z: usize> {
+    /// Blocks `0..HS`.
+    pub head: &'static [[[f32; 4]; Z]],
+    /// Blocks `HS..H`.
+    pub tail: &'static [[[f32; 4]; Z]],
+}
+
 /// The f32 network of fixed sizes in the exporter's layout: `I` inputs, input layer
 /// of `E = 4 * EB` rows with the activation `A` ([`InputLayer`]), `H` cells over
 /// `Z = E + H` columns (`[e; h]`), `O` outputs in `OB` blocks. Each block stores its 4 rows column-interleaved (`[k][row]`);
@@ -714,8 +738,9 @@ pub struct F32Lstm<
     pub b_in: [[f32; 4]; EB],
     /// Activation after the input layer.
     pub input_layer: A,
-    /// Gate weights over `[e; h]`, block `j` = rows `i_j, f_j, g_j, o_j`.
-    pub w_gates: [[[f32; 4]; Z]; H],
+    /// Gate weights over `[e; h]`, block `j` = rows `i_j, f_j, g_j, o_j`, in two
+    /// statics ([`F32GateRows`]).
+    pub w_gates: F32GateRows<Z>,
     /// Gate bias (`bias_ih + bias_hh`).
     pub b_gates: [[f32; 4]; H],
     /// Output weights (rows beyond `O` zero).
@@ -802,7 +827,8 @@ impl<
             w_in: self.w_in.as_flattened(),
             b_in: &self.b_in,
             input_activation: A::ACTIVATION,
-            w_gates: self.w_gates.as_flattened(),
+            w_gates: self.w_gates.head.as_flattened(),
+            w_gates_tail: self.w_gates.tail.as_flattened(),
             b_gates: &self.b_gates,
             w_out: self.w_out.as_flattened(),
             b_out: &self.b_out,
