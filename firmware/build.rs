@@ -22,7 +22,7 @@ fn main() {
     let out = std::env::var("OUT_DIR").unwrap_or_default();
     let sigmoid = |x: f64| 1.0 / (1.0 + libm::exp(-x));
     let tables = format!(
-        "/// [sigmoid, tanh], see `nn::act`.\npub static ACT_TABLES: [[i16; {TABLE_LEN}]; 2] = [{}, {}];\n",
+        "/// The tables' values, [sigmoid, tanh], see `nn::act`: the one definition of the two\n/// statics that hold them (a `const` only ever read at compile time).\n#[allow(clippy::large_const_arrays)]\npub const ACT_TABLE_VALUES: [[i16; {TABLE_LEN}]; 2] = [{}, {}];\n",
         table(sigmoid, 0),
         table(libm::tanh, -32767)
     );

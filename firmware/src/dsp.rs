@@ -2,11 +2,13 @@
 //!
 //! rustc 1.95 never emits SMLAD for a plain int16 dot product (about 3.6 instructions
 //! per MAC), nor VLDM for an f32 one; these kernels issue them explicitly over 4
-//! interleaved weight rows. The layer kernels ([`matvec4_i16`], [`matvec4_f32`]) run
-//! every 4-row block of a layer in one call: 1.34 estimated cycles per MAC in the
-//! int16 loop (LDRD + 2 LDM + 8 SMLAD per quad, 8 quads per iteration), 3.44 in the
-//! f32 loop (VLDM of 8 inputs and 2 x 16 weights, VMUL + VADD, 8 columns per
-//! iteration); the single-block kernels ([`dot4_i16`], [`dot4_i8`], [`dot4_f32`])
+//! interleaved weight rows. The layer kernels ([`matvec4_i16`], [`matvec4_i8`],
+//! [`matvec4_f32`]) run every 4-row block of a layer in one call: 1.34 estimated cycles
+//! per MAC in the int16 loop (LDRD + 2 LDM + 8 SMLAD per quad, 8 quads per iteration),
+//! about 1.6 in the int8 loop (LDM + 2 LDR + 8 SXTB16 + 8 SMLAD per quad, 2 quads per
+//! iteration), 3.44 in the f32 loop (VLDM of 8 inputs and 2 x 16 weights, VMUL + VADD,
+//! 8 columns per iteration); the single-block kernels ([`dot4_i16`], [`dot4_i8`],
+//! [`dot4_f32`])
 //! serve the small layers. [`lstm_small_i16`] runs a small int16 network's input
 //! layer, gates and cell updates in one unrolled block with `[e; h]` held in FPU
 //! registers (its portable twin is `nn::kernels::QuantView::step`). VMLA/VFMA are not used: the separate rounding of VMUL + VADD
@@ -171,6 +173,46 @@ pub fn matvec4_i16(acc: &mut [[i32; 4]], bias: &[[i32; 4]], w: &[[[u32; 4]; 2]],
     }
 }
 
+/// A whole int8-weight layer: for every 4-row block `b`, `acc[b] = dot4_i8(bias[b],
+/// w[b * Q..(b + 1) * Q], x)` with `Q = x.len()` quads; `min(acc.len(), bias.len(),
+/// w.len() / Q)` blocks (with `Q == 0`, `acc[b] = bias[b]`). One call per layer keeps
+/// the block loop and the accumulators inside the assembly: per quad one LDM of the 4
+/// rows' weight words, two LDR of the input pairs, 8 SXTB16 and 8 SMLAD (25 estimated
+/// cycles per 16 MACs), two quads per iteration.
+#[inline(always)]
+pub fn matvec4_i8(acc: &mut [[i32; 4]], bias: &[[i32; 4]], w: &[[u32; 4]], x: &[[u32; 2]]) {
+    let q = x.len();
+    if q == 0 {
+        for (a, b) in acc.iter_mut().zip(bias) {
+            *a = *b;
+        }
+        return;
+    }
+    let blocks = acc.len().min(bias.len()).min(w.len() / q);
+    if blocks == 0 {
+        return;
+    }
+    #[cfg(fw_dsp_asm)]
+    {
+        // SAFETY: blocks > 0 blocks of q > 0 quads of `w`, q quads of `x`, blocks
+        // biases and accumulators, all in bounds by the computation above.
+        unsafe {
+            asm::matvec4_i8(
+                acc.as_mut_ptr(),
+                bias.as_ptr(),
+                w.as_ptr(),
+                x.as_ptr(),
+                q,
+                blocks,
+            )
+        }
+    }
+    #[cfg(not(fw_dsp_asm))]
+    {
+        portable::matvec4_i8(&mut acc[..blocks], bias, w, x)
+    }
+}
+
 /// A whole f32 layer: for every 4-row block `b`, `out[b] = dot4_f32([0.0; 4],
 /// w[b * N..(b + 1) * N], x)` with `N = x.len()` columns (each row summed left to
 /// right from +0.0, separate multiply and add: the bits of [`dot4_f32`]);
@@ -191,12 +233,69 @@ pub fn matvec4_f32(out: &mut [[f32; 4]], w: &[[f32; 4]], x: &[f32]) {
     #[cfg(fw_dsp_asm)]
     {
         // SAFETY: blocks > 0 blocks of n > 0 columns of `w`, n values of `x`, blocks
-        // outputs, all in bounds by the computation above.
-        unsafe { asm::matvec4_f32(out.as_mut_ptr(), w.as_ptr(), x.as_ptr(), n, blocks) }
+        // outputs, all in bounds by the computation above; no second part.
+        unsafe {
+            asm::matvec4_f32(
+                out.as_mut_ptr(),
+                w.as_ptr(),
+                blocks,
+                w.as_ptr(),
+                0,
+                x.as_ptr(),
+                n,
+            )
+        }
     }
     #[cfg(not(fw_dsp_asm))]
     {
         portable::matvec4_f32(&mut out[..blocks], w, x)
+    }
+}
+
+/// [`matvec4_f32`] over a layer whose blocks are stored in two parts (`head`: the first
+/// blocks, `tail`: the rest, e.g. one in SRAM and one in flash): `out[b]` from block
+/// `b` of `head` and then of `tail`, the same bits as one layer; `min(out.len(),
+/// head.len() / N + tail.len() / N)` blocks. One assembly block for both parts (the
+/// switch from one to the other costs a few cycles per layer, not per block).
+#[inline(always)]
+pub fn matvec4_f32_parts(out: &mut [[f32; 4]], head: &[[f32; 4]], tail: &[[f32; 4]], x: &[f32]) {
+    let n = x.len();
+    if n == 0 {
+        out.fill([0.0; 4]);
+        return;
+    }
+    let head_blocks = out.len().min(head.len() / n);
+    let tail_blocks = (out.len() - head_blocks).min(tail.len() / n);
+    #[cfg(fw_dsp_asm)]
+    {
+        let (first, first_blocks, second, second_blocks) = if head_blocks > 0 {
+            (head, head_blocks, tail, tail_blocks)
+        } else {
+            (tail, tail_blocks, head, 0)
+        };
+        if first_blocks == 0 {
+            return;
+        }
+        // SAFETY: first_blocks > 0 blocks of n > 0 columns of `first`, second_blocks
+        // of `second`, n values of `x`, first_blocks + second_blocks <= out.len()
+        // outputs, all in bounds by the computation above.
+        unsafe {
+            asm::matvec4_f32(
+                out.as_mut_ptr(),
+                first.as_ptr(),
+                first_blocks,
+                second.as_ptr(),
+                second_blocks,
+                x.as_ptr(),
+                n,
+            )
+        }
+    }
+    #[cfg(not(fw_dsp_asm))]
+    {
+        let (out_head, out_tail) = out.split_at_mut(head_blocks);
+        portable::matvec4_f32(out_head, head, x);
+        portable::matvec4_f32(&mut out_tail[..tail_blocks], tail, x);
     }
 }
 
@@ -260,9 +359,9 @@ pub fn lstm_small_i16<
     }
     #[cfg(fw_dsp_asm)]
     {
-        use crate::nn::act::{ACT_TABLES, SIGMOID, TABLE_LEN, TANH};
+        use crate::nn::act::{SIGMOID, TABLE_LEN, TANH};
         let mid = |f: usize| {
-            ACT_TABLES.get(f).map_or(core::ptr::null(), |t| {
+            F::ACT_TABLES.get(f).map_or(core::ptr::null(), |t| {
                 t.as_ptr().wrapping_add(TABLE_LEN / 2)
             }) as usize
         };
@@ -339,6 +438,20 @@ pub mod portable {
         }
         for ((a, b), wb) in acc.iter_mut().zip(bias).zip(w.chunks_exact(x.len())) {
             *a = dot4_i16(*b, wb, x);
+        }
+    }
+
+    /// Portable [`super::matvec4_i8`].
+    #[inline(always)]
+    pub fn matvec4_i8(acc: &mut [[i32; 4]], bias: &[[i32; 4]], w: &[[u32; 4]], x: &[[u32; 2]]) {
+        if x.is_empty() {
+            for (a, b) in acc.iter_mut().zip(bias) {
+                *a = *b;
+            }
+            return;
+        }
+        for ((a, b), wb) in acc.iter_mut().zip(bias).zip(w.chunks_exact(x.len())) {
+            *a = dot4_i8(*b, wb, x);
         }
     }
 
@@ -614,6 +727,106 @@ mod asm {
         }
     }
 
+    /// One quad of the int8 layer kernel: the 4 rows' weight words by one LDM (r4, r5,
+    /// r8, r9: rows 0..4), the input pairs by LDR; the low byte pairs through a
+    /// temporary, the high ones rotated in place. Accumulators in r0-r3.
+    macro_rules! quad_i8 {
+        () => {
+            concat!(
+                "ldr {x}, [{xp}], #4\n",
+                "ldm {wp}!, {{r4, r5, r8, r9}}\n",
+                "sxtb16 {t}, r4\n",
+                "smlad r0, {t}, {x}, r0\n",
+                "sxtb16 {t}, r5\n",
+                "smlad r1, {t}, {x}, r1\n",
+                "sxtb16 {t}, r8\n",
+                "smlad r2, {t}, {x}, r2\n",
+                "sxtb16 {t}, r9\n",
+                "smlad r3, {t}, {x}, r3\n",
+                "ldr {x}, [{xp}], #4\n",
+                "sxtb16 r4, r4, ror #8\n",
+                "smlad r0, r4, {x}, r0\n",
+                "sxtb16 r5, r5, ror #8\n",
+                "smlad r1, r5, {x}, r1\n",
+                "sxtb16 r8, r8, ror #8\n",
+                "smlad r2, r8, {x}, r2\n",
+                "sxtb16 r9, r9, ror #8\n",
+                "smlad r3, r9, {x}, r3\n",
+            )
+        };
+    }
+
+    /// The int8 layer: per block, accumulators (r0-r3) from `bias` by one LDM, `q / 2`
+    /// iterations of 2 quads, then one more quad when `q` is odd, accumulators to `acc`
+    /// by one STM. The loop-invariant values (x base, q, blocks left, accumulator and
+    /// bias pointers) live in 24 bytes of stack that the block reserves and frees
+    /// itself.
+    ///
+    /// # Safety
+    /// `acc` (written) and `bias` valid for `blocks > 0` blocks, `w` for `blocks * q`
+    /// quads, `x` for `q > 0` quads.
+    #[inline(always)]
+    pub unsafe fn matvec4_i8(
+        acc: *mut [i32; 4],
+        bias: *const [i32; 4],
+        w: *const [u32; 4],
+        x: *const [u32; 2],
+        q: usize,
+        blocks: usize,
+    ) {
+        // SAFETY (caller: pointers valid as documented): per block the loops read q
+        // quads of `x` and of `w` (w advances block after block), one `[i32; 4]` of
+        // `bias` and write one of `acc`; sp is restored; only declared registers and
+        // the flags are written.
+        unsafe {
+            asm!(
+                "sub sp, sp, #24",
+                "strd r0, r1, [sp]",
+                "strd r2, r3, [sp, #8]",
+                "str {t}, [sp, #16]",
+                "2:",
+                "ldr {t}, [sp, #16]",
+                "ldm {t}!, {{r0, r1, r2, r3}}",
+                "str {t}, [sp, #16]",
+                "ldrd {xp}, {n}, [sp]",
+                "lsrs {n}, {n}, #1",
+                "beq 4f",
+                "3:",
+                quad_i8!(),
+                quad_i8!(),
+                "subs {n}, {n}, #1",
+                "bne 3b",
+                "4:",
+                "ldr {n}, [sp, #4]",
+                "lsls {n}, {n}, #31",
+                "beq 5f",
+                quad_i8!(),
+                "5:",
+                "ldr {t}, [sp, #12]",
+                "stm {t}!, {{r0, r1, r2, r3}}",
+                "str {t}, [sp, #12]",
+                "ldr {t}, [sp, #8]",
+                "subs {t}, {t}, #1",
+                "str {t}, [sp, #8]",
+                "bne 2b",
+                "add sp, sp, #24",
+                inout("r0") x => _,
+                inout("r1") q => _,
+                inout("r2") blocks => _,
+                inout("r3") acc => _,
+                t = inout(reg) bias => _,
+                wp = inout(reg) w => _,
+                x = out(reg) _,
+                xp = out(reg) _,
+                n = out(reg) _,
+                out("r4") _,
+                out("r5") _,
+                out("r8") _,
+                out("r9") _,
+            );
+        }
+    }
+
     /// Four columns of the f32 layer kernel: inputs s4+k, weights s12-s27. Per
     /// column the four VMUL come before the four VADD, so that no VADD reads the
     /// result of the instruction right before it (the FPU's one-cycle result stall);
@@ -692,24 +905,29 @@ mod asm {
     /// The f32 layer: per block, accumulators s0-s3 from +0.0, `n / 8` iterations
     /// of 8 columns (VLDM of 8 inputs into s4-s11, two VLDM of 16 weights into
     /// s12-s27, products in s28-s31), then `n % 8` single columns; VSTM of s0-s3.
-    /// All 32 FPU registers are saved and restored inside the block (VPUSH/VPOP of
-    /// d0-d15, once per layer).
+    /// The blocks come from two parts: `blocks` of `w`, then `blocks2` of `w2` (the
+    /// weight pointer and the count switch once, after the first part). All 32 FPU
+    /// registers are saved and restored inside the block (VPUSH/VPOP of d0-d15, once
+    /// per layer).
     ///
     /// # Safety
-    /// `out` valid for `blocks > 0` blocks (written), `w` for `blocks * n` columns,
-    /// `x` for `n > 0` values.
+    /// `out` valid for `blocks + blocks2` blocks (written), `blocks > 0`, `w` for
+    /// `blocks * n` columns, `w2` for `blocks2 * n`, `x` for `n > 0` values.
     #[inline(always)]
     pub unsafe fn matvec4_f32(
         out: *mut [f32; 4],
         w: *const [f32; 4],
+        blocks: usize,
+        w2: *const [f32; 4],
+        blocks2: usize,
         x: *const f32,
         n: usize,
-        blocks: usize,
     ) {
         // SAFETY (caller: pointers valid as documented): per block the loops read n
-        // values of `x` and n columns of `w` (w advances block after block) and write
-        // one `[f32; 4]` of `out`; every FPU register is pushed before and popped
-        // after; sp is restored; only declared core registers and the flags change.
+        // values of `x` and n columns of `w` or `w2` (each advances block after block)
+        // and write one `[f32; 4]` of `out`; every FPU register is pushed before and
+        // popped after; sp is restored; only declared core registers and the flags
+        // change.
         unsafe {
             asm!(
                 "vpush {{d0-d15}}",
@@ -748,12 +966,21 @@ mod asm {
                 "vstmia {op}!, {{s0-s3}}",
                 "subs {nb}, {nb}, #1",
                 "bne 2b",
+                // The second part, if any: its blocks and weights, once.
+                "movs {nb}, {nb2}",
+                "beq 7f",
+                "mov {wp}, {wp2}",
+                "movs {nb2}, #0",
+                "b 2b",
+                "7:",
                 "vpop {{d0-d15}}",
                 op = inout(reg) out => _,
                 wp = inout(reg) w => _,
+                wp2 = in(reg) w2,
                 xb = in(reg) x,
                 n = in(reg) n,
                 nb = inout(reg) blocks => _,
+                nb2 = inout(reg) blocks2 => _,
                 xp = out(reg) _,
                 k = out(reg) _,
             );
@@ -1205,6 +1432,29 @@ mod tests {
         let mut copy = [[0; 4]; 2];
         matvec4_i16(&mut copy, &bias[..2], &w19, &[]);
         assert_eq!(copy, [bias[0], bias[1]]);
+        // int8: 3 blocks of 7 quads (three 2-quad iterations and the odd quad), 2 of 19.
+        let w8: [[u32; 4]; 3 * Q] = core::array::from_fn(|q| w[q][0]);
+        let mut acc8 = [[7; 4]; 3];
+        matvec4_i8(&mut acc8, &bias, &w8, &x);
+        for b in 0..3 {
+            assert_eq!(
+                acc8[b],
+                dot4_i8(bias[b], &w8[b * Q..(b + 1) * Q], &x),
+                "block {b}"
+            );
+        }
+        let w8_19: [[u32; 4]; 38] = core::array::from_fn(|q| w19[q][1]);
+        let mut acc8 = [[0; 4]; 2];
+        matvec4_i8(&mut acc8, &bias[..2], &w8_19, &x19);
+        for b in 0..2 {
+            assert_eq!(
+                acc8[b],
+                dot4_i8(bias[b], &w8_19[b * 19..(b + 1) * 19], &x19)
+            );
+        }
+        let mut copy8 = [[0; 4]; 2];
+        matvec4_i8(&mut copy8, &bias[..2], &w8_19, &[]);
+        assert_eq!(copy8, [bias[0], bias[1]]);
         // f32: 2 blocks of 11 columns (one 8-column iteration and 3 single columns).
         const N: usize = 11;
         let wf: [[f32; 4]; 2 * N] = core::array::from_fn(|k| {
@@ -1219,6 +1469,17 @@ mod tests {
                 out[b].map(f32::to_bits),
                 want.map(f32::to_bits),
                 "block {b}"
+            );
+        }
+        // The same layer from two parts: the same bits, whichever split.
+        for split in 0..=2 {
+            let mut parts = [[9.0f32; 4]; 2];
+            let (head, tail) = wf.split_at(split * N);
+            matvec4_f32_parts(&mut parts, head, tail, &xf);
+            assert_eq!(
+                parts.map(|b| b.map(f32::to_bits)),
+                out.map(|b| b.map(f32::to_bits)),
+                "split after {split} blocks"
             );
         }
         let mut none = [[1.0f32; 4]; 1];

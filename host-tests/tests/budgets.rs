@@ -12,16 +12,10 @@ use host_tests::budget::{self, Budgets, Options};
 /// recorded: a figure above it fails, and so does a figure within the limit (remove
 /// the entry then). Why each is over (host-tests/README.md):
 /// - `lstm_paper_f32`: its 135 800 B of weights do not fit the board's SRAM and CCM
-///   SRAM;
-/// - `lstm_paper_int8`: exported to flash (the QEMU bench binary has no room for it
-///   beside the int16 network);
-/// - `lstm_joint_int16`: its weights are in SRAM, the activation tables in flash (the
-///   bench image has no RAM left for them).
-const KNOWN_CHIP_OVERRUNS: [(&str, u64); 3] = [
-    ("lstm_paper_f32", 215_357),
-    ("lstm_paper_int8", 89_929),
-    ("lstm_joint_int16", 3_842),
-];
+///   SRAM; the exporter puts the first 35 of its 64 gate blocks in SRAM, and the
+///   64 120 B that stream from flash cost more than the limit leaves beside the
+///   zero-wait compute (the floor in host-tests/README.md).
+const KNOWN_CHIP_OVERRUNS: [(&str, u64); 1] = [("lstm_paper_f32", 179_762)];
 
 #[test]
 fn firmware_fits_its_budgets_and_lowered_budgets_fail() {

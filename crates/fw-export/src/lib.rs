@@ -485,6 +485,8 @@ impl<F: WeightFormat> QuantNet<F> {
             gate_w: &self.gate_w,
             gate_bias: &self.gate_bias,
             gate_shift: self.gate_shift,
+            // The host has one memory: either static holds the same values.
+            act_tables: &act::ACT_TABLES_FLASH,
             out_w: &self.out_w,
             out_scale: &self.out_scale,
             out_offset: &self.out_offset,
@@ -615,6 +617,7 @@ impl F32Net {
             b_in: &self.b_in,
             input_activation: self.input_activation,
             w_gates: &self.w_gates,
+            w_gates_tail: &[],
             b_gates: &self.b_gates,
             w_out: &self.w_out,
             b_out: &self.b_out,
@@ -692,6 +695,27 @@ impl Exported {
             Exported::F32(n) => n.input_activation,
             Exported::Int16(n) => n.in_activation,
             Exported::Int8(n) => n.in_activation,
+        }
+    }
+
+    /// Bytes of one block of the gate matrix and the number of blocks, when the network
+    /// can place the first blocks apart from the rest (f32: `F32GateRows`), else `(0, 0)`.
+    pub fn gate_blocks(&self) -> (usize, usize) {
+        match self {
+            Exported::F32(n) => {
+                let z = 4 * n.dims.embed_blocks + n.dims.hidden;
+                (z * 16, n.dims.hidden)
+            }
+            Exported::Int16(_) | Exported::Int8(_) => (0, 0),
+        }
+    }
+
+    /// Bytes of the activation tables the network reads (`firmware::nn::act`, 32 KiB for
+    /// the integer networks; 0 for f32, whose activations are computed).
+    pub fn act_tables_bytes(&self) -> usize {
+        match self {
+            Exported::F32(_) => 0,
+            Exported::Int16(_) | Exported::Int8(_) => act::ACT_TABLES_BYTES,
         }
     }
 
@@ -859,9 +883,14 @@ pub fn sram_budget(path: &std::path::Path) -> anyhow::Result<SramBudget> {
     })
 }
 
-/// Chooses where each of the model's arrays lives. `auto` fills the SRAM budget in the
-/// order of what a tick reads most: the network, then the rigid-body model, then the
-/// linear stage; each goes to SRAM when it fits what is left, to flash otherwise.
+/// Chooses where each of the model's arrays lives, and the activation tables its
+/// network reads. `auto` fills the SRAM budget in the order of what a tick reads most:
+/// the network, then the rigid-body model, then the linear stage; each goes to SRAM
+/// when it fits what is left, to flash otherwise. The activation tables (an integer
+/// network's; an f32 network reads none) go to SRAM when they fit what the arrays
+/// left, with `auto` and with `sram` (which puts the arrays in SRAM or fails), to
+/// flash otherwise; with `flash` everything stays in flash, and without a budget
+/// `sram` puts the tables in SRAM too.
 pub fn choose_placement(
     want: WeightsIn,
     bytes: ModelBytes,
@@ -889,10 +918,41 @@ pub fn choose_placement(
             })
         }
     };
+    let arrays_in_sram = [
+        (network, bytes.network),
+        (dynamics, bytes.dynamics),
+        (linear_stage, bytes.linear_stage),
+    ]
+    .iter()
+    .filter(|(p, _)| *p == Placement::Sram)
+    .map(|(_, n)| *n as u64)
+    .sum::<u64>();
+    // A network too big for SRAM: the first blocks of its gate matrix fill what is left.
+    let gate_blocks_in_sram = match (want, sram_budget_bytes, network) {
+        (WeightsIn::Auto, Some(b), Placement::Flash) if bytes.gate_block > 0 => {
+            let left = b.saturating_sub(arrays_in_sram);
+            ((left / bytes.gate_block as u64) as usize).min(bytes.gate_blocks)
+        }
+        _ => 0,
+    };
+    let in_sram = arrays_in_sram + (gate_blocks_in_sram * bytes.gate_block) as u64;
+    let act_tables = (bytes.act_tables > 0).then(|| match (want, sram_budget_bytes) {
+        (WeightsIn::Flash, _) | (WeightsIn::Auto, None) => Placement::Flash,
+        (WeightsIn::Sram, None) => Placement::Sram,
+        (WeightsIn::Sram | WeightsIn::Auto, Some(b)) => {
+            if in_sram + bytes.act_tables as u64 <= b {
+                Placement::Sram
+            } else {
+                Placement::Flash
+            }
+        }
+    });
     Ok(PlacementChoice {
         network,
         dynamics,
         linear_stage,
+        act_tables,
+        gate_blocks_in_sram,
         bytes,
         sram_budget_bytes,
     })
@@ -907,6 +967,15 @@ pub struct ModelBytes {
     pub dynamics: usize,
     /// `LINEAR_STAGE`.
     pub linear_stage: usize,
+    /// The activation tables the network reads (`firmware::nn::act`; 0 when it reads
+    /// none).
+    pub act_tables: usize,
+    /// Bytes of one block of the gate matrix when the network can place the first
+    /// blocks of its gate matrix in SRAM apart from the rest (`F32GateRows`, f32
+    /// networks), else 0.
+    pub gate_block: usize,
+    /// Blocks of the gate matrix (`H`).
+    pub gate_blocks: usize,
 }
 
 /// Where each of the model's arrays lives, and the budget the choice was weighed against.
@@ -918,6 +987,11 @@ pub struct PlacementChoice {
     pub dynamics: Placement,
     /// `LINEAR_STAGE`.
     pub linear_stage: Placement,
+    /// The activation tables (`Format::ACT_TABLES`); `None` when the network reads none.
+    pub act_tables: Option<Placement>,
+    /// With the network in flash: the first blocks of its gate matrix placed in SRAM
+    /// (`GATES_HEAD`; 0 for none, always 0 for an integer network).
+    pub gate_blocks_in_sram: usize,
     /// Their sizes.
     pub bytes: ModelBytes,
     /// The SRAM budget for the model's arrays [bytes], when a budget file was given.
@@ -935,9 +1009,25 @@ impl PlacementChoice {
             Some(b) => format!("SRAM budget for the model {b} bytes"),
             None => "no budget file".to_string(),
         };
+        let tables = match self.act_tables {
+            Some(p) => format!(
+                "activation tables {} bytes in {}",
+                self.bytes.act_tables,
+                at(p)
+            ),
+            None => "no activation tables (f32)".to_string(),
+        };
+        let split = match self.gate_blocks_in_sram {
+            0 => String::new(),
+            k => format!(
+                " (its gate matrix's first {k} of {} blocks, {} bytes, in SRAM)",
+                self.bytes.gate_blocks,
+                k * self.bytes.gate_block
+            ),
+        };
         format!(
-            "network {} bytes in {}, rigid-body model {} bytes in {}, linear stage {} bytes in {} \
-             (SRAM: .data, copied from flash at reset; flash: .rodata); {budget}",
+            "network {} bytes in {}{split}, rigid-body model {} bytes in {}, linear stage {} bytes in {}, \
+             {tables} (SRAM: .data, copied from flash at reset; flash: .rodata); {budget}",
             self.bytes.network,
             at(self.network),
             self.bytes.dynamics,
@@ -1041,6 +1131,9 @@ fn quads_i8(q: &[u32; 4]) -> String {
 }
 
 fn nested<T: Copy>(flat: &[T], per: usize, f: impl Fn(&T) -> String) -> String {
+    if flat.is_empty() {
+        return "[]".into();
+    }
     let chunks: Vec<String> = flat.chunks(per.max(1)).map(|c| list(c, &f)).collect();
     format!("[\n    {}\n]", chunks.join(",\n    "))
 }
@@ -1048,6 +1141,7 @@ fn nested<T: Copy>(flat: &[T], per: usize, f: impl Fn(&T) -> String) -> String {
 fn write_quant<F: WeightFormat>(
     s: &mut String,
     section: &str,
+    tables: Placement,
     n: &QuantNet<F>,
     fmt: &str,
     quad: impl Fn(&F::Quad) -> String,
@@ -1065,8 +1159,9 @@ fn write_quant<F: WeightFormat>(
     );
     let _ = writeln!(
         s,
-        "/// The network's integer format: `{}` weights, the input activation and the \
-         activation-index shifts of its power-of-two scales.",
+        "/// The network's integer format: `{}` weights, the input activation, the \
+         activation-index shifts of its power-of-two scales and the activation tables' \
+         placement.",
         F::NAME
     );
     let _ = writeln!(s, "pub struct Format;");
@@ -1082,6 +1177,15 @@ fn write_quant<F: WeightFormat>(
         s,
         "    const GATE_SHIFTS: [u32; 4] = {};",
         list(&n.gate_shift, |x| x.to_string())
+    );
+    // A closed set of paths (never input text).
+    let tables = match tables {
+        Placement::Sram => "ACT_TABLES_SRAM",
+        Placement::Flash => "ACT_TABLES_FLASH",
+    };
+    let _ = writeln!(
+        s,
+        "    const ACT_TABLES: &'static firmware::nn::act::ActTables = &firmware::nn::act::{tables};"
     );
     let _ = writeln!(s, "}}");
     let _ = writeln!(s, "/// The network's type: sizes from the exporter.");
@@ -1147,7 +1251,9 @@ fn input_layer_type(a: InputActivation) -> &'static str {
     }
 }
 
-fn write_f32(s: &mut String, section: &str, n: &F32Net) {
+/// `head_blocks`: how many blocks of the gate matrix go to `GATES_HEAD` (placed by
+/// `head_section`); the rest go to `GATES_TAIL`, placed with the network (`section`).
+fn write_f32(s: &mut String, section: &str, head_section: &str, head_blocks: usize, n: &F32Net) {
     let d = n.dims;
     let (i, eb, h, o, ob) = (d.input, d.embed_blocks, d.hidden, d.output, d.output_blocks);
     let e = 4 * eb;
@@ -1164,6 +1270,39 @@ fn write_f32(s: &mut String, section: &str, n: &F32Net) {
     );
     let _ = writeln!(s, "/// The network's recurrent state.");
     let _ = writeln!(s, "pub type State = F32State<{z}, {h}>;");
+    let head_blocks = head_blocks.min(h);
+    let (head, tail) = n.w_gates.split_at((head_blocks * z).min(n.w_gates.len()));
+    let _ = writeln!(
+        s,
+        "/// The gate matrix's first {head_blocks} blocks ({} bytes; `F32GateRows`).",
+        head.len() * 16
+    );
+    let head_section = if head.is_empty() { "" } else { head_section };
+    let _ = write!(s, "{head_section}");
+    let _ = writeln!(
+        s,
+        "pub static GATES_HEAD: [[[f32; 4]; {z}]; {head_blocks}] = {};",
+        nested(head, z, v4)
+    );
+    let _ = writeln!(
+        s,
+        "/// The gate matrix's other {} blocks ({} bytes).",
+        h - head_blocks,
+        tail.len() * 16
+    );
+    // An empty part needs no placement.
+    let tail_section = if tail.is_empty() { "" } else { section };
+    let _ = write!(s, "{tail_section}");
+    let _ = writeln!(
+        s,
+        "pub static GATES_TAIL: [[[f32; 4]; {z}]; {}] = {};",
+        h - head_blocks,
+        nested(tail, z, v4)
+    );
+    let _ = writeln!(
+        s,
+        "const _: () = assert!(GATES_HEAD.len() + GATES_TAIL.len() == {h}, \"the gate matrix has H blocks\");"
+    );
     let _ = writeln!(s, "/// The network.");
     let _ = write!(s, "{section}");
     let _ = writeln!(s, "pub static NETWORK: Network = F32Lstm {{");
@@ -1180,7 +1319,10 @@ fn write_f32(s: &mut String, section: &str, n: &F32Net) {
     let _ = writeln!(s, "    w_in: {},", nested(&n.w_in, i, v4));
     let _ = writeln!(s, "    b_in: {},", list(&n.b_in, v4));
     let _ = writeln!(s, "    input_layer: {layer},");
-    let _ = writeln!(s, "    w_gates: {},", nested(&n.w_gates, z, v4));
+    let _ = writeln!(
+        s,
+        "    w_gates: F32GateRows {{ head: &GATES_HEAD, tail: &GATES_TAIL }},"
+    );
     let _ = writeln!(s, "    b_gates: {},", list(&n.b_gates, v4));
     let _ = writeln!(s, "    w_out: {},", nested(&n.w_out, h, v4));
     let _ = writeln!(s, "    b_out: {},", list(&n.b_out, v4));
@@ -1407,6 +1549,7 @@ pub fn render(
         attribute(meta.placement.linear_stage),
     );
     let section = section.as_str();
+    let tables = meta.placement.act_tables.unwrap_or(Placement::Flash);
     // The variant of a known preset name; anything else is `Custom` (never input text).
     let preset = format!(
         "{:?}",
@@ -1496,9 +1639,19 @@ pub fn render(
     );
     write_profiles(s, &meta.profiles);
     match net {
-        Exported::F32(n) => write_f32(s, &network_section, n),
-        Exported::Int16(n) => write_quant(s, &network_section, n, "I16Weights", quads_i16),
-        Exported::Int8(n) => write_quant(s, &network_section, n, "I8Weights", quads_i8),
+        Exported::F32(n) => {
+            // The whole gate matrix goes with the network, or its first blocks to SRAM.
+            let (head_section, head_blocks) = match meta.placement.network {
+                Placement::Sram => (network_section.clone(), n.dims.hidden),
+                Placement::Flash => (
+                    attribute(Placement::Sram),
+                    meta.placement.gate_blocks_in_sram,
+                ),
+            };
+            write_f32(s, &network_section, &head_section, head_blocks, n)
+        }
+        Exported::Int16(n) => write_quant(s, &network_section, tables, n, "I16Weights", quads_i16),
+        Exported::Int8(n) => write_quant(s, &network_section, tables, n, "I8Weights", quads_i8),
     }
     if let Some(d) = dynamics {
         write_any_dynamics(s, &dynamics_section, d);
@@ -1562,7 +1715,7 @@ pub fn render(
     let _ = writeln!(out, "#[allow(unused_imports)]");
     let _ = writeln!(
         out,
-        "use firmware::nn::kernels::{{F32Lstm, F32State, LinearInput, QuantLstm, TanhInput}};"
+        "use firmware::nn::kernels::{{F32GateRows, F32Lstm, F32State, LinearInput, QuantLstm, TanhInput}};"
     );
     let _ = writeln!(
         out,
@@ -1645,4 +1798,206 @@ pub fn accuracy_markdown(rows: &[AccuracyRow]) -> String {
         );
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use firmware::nn::reference::LstmDims;
+
+    /// The paper int16 network's sizes (68 968 B), and the board's model budget.
+    const PAPER_INT16: ModelBytes = ModelBytes {
+        network: 68_968,
+        dynamics: 808,
+        linear_stage: 324,
+        act_tables: act::ACT_TABLES_BYTES,
+        gate_block: 0,
+        gate_blocks: 0,
+    };
+    const BUDGET: Option<u64> = Some(73_728);
+
+    fn tables(want: WeightsIn, bytes: ModelBytes, budget: Option<u64>) -> Option<Placement> {
+        choose_placement(want, bytes, budget)
+            .expect("placement")
+            .act_tables
+    }
+
+    #[test]
+    fn the_tables_go_to_sram_only_when_they_fit_beside_the_arrays() {
+        // 68 968 + 808 + 324 + 32 768 > 73 728: the tables stay in flash.
+        assert_eq!(
+            tables(WeightsIn::Auto, PAPER_INT16, BUDGET),
+            Some(Placement::Flash)
+        );
+        // The per-joint network (4 728 B): everything fits.
+        let joint = ModelBytes {
+            network: 4_728,
+            dynamics: 0,
+            linear_stage: 108,
+            ..PAPER_INT16
+        };
+        let p = choose_placement(WeightsIn::Auto, joint, BUDGET).expect("placement");
+        assert_eq!(
+            (p.network, p.linear_stage, p.act_tables),
+            (Placement::Sram, Placement::Sram, Some(Placement::Sram))
+        );
+        assert!(
+            p.describe()
+                .contains("activation tables 32768 bytes in SRAM")
+        );
+        // Exactly at the budget fits; one byte over does not.
+        let exact = ModelBytes {
+            network: 73_728 - 32_768,
+            dynamics: 0,
+            linear_stage: 0,
+            ..PAPER_INT16
+        };
+        assert_eq!(
+            tables(WeightsIn::Auto, exact, BUDGET),
+            Some(Placement::Sram)
+        );
+        let over = ModelBytes {
+            network: exact.network + 1,
+            ..exact
+        };
+        assert_eq!(
+            tables(WeightsIn::Auto, over, BUDGET),
+            Some(Placement::Flash)
+        );
+        // A network too big for SRAM leaves the room to the tables.
+        let f32_sized = ModelBytes {
+            network: 135_800,
+            ..joint
+        };
+        let p = choose_placement(WeightsIn::Auto, f32_sized, BUDGET).expect("placement");
+        assert_eq!(
+            (p.network, p.act_tables),
+            (Placement::Flash, Some(Placement::Sram))
+        );
+    }
+
+    #[test]
+    fn an_f32_network_too_big_for_sram_puts_its_first_gate_blocks_there() {
+        // The paper f32 network: 135 800 B, 64 gate blocks of 128 columns (2 048 B).
+        let paper_f32 = ModelBytes {
+            network: 135_800,
+            dynamics: 808,
+            linear_stage: 324,
+            act_tables: 0,
+            gate_block: 2_048,
+            gate_blocks: 64,
+        };
+        let p = choose_placement(WeightsIn::Auto, paper_f32, BUDGET).expect("placement");
+        // (73 728 - 808 - 324) / 2 048 = 35 blocks.
+        assert_eq!(
+            (p.network, p.dynamics, p.linear_stage, p.gate_blocks_in_sram),
+            (Placement::Flash, Placement::Sram, Placement::Sram, 35)
+        );
+        assert!(
+            p.describe()
+                .contains("(its gate matrix's first 35 of 64 blocks, 71680 bytes, in SRAM)"),
+            "{}",
+            p.describe()
+        );
+        for (want, budget) in [(WeightsIn::Flash, BUDGET), (WeightsIn::Auto, None)] {
+            let p = choose_placement(want, paper_f32, budget).expect("placement");
+            assert_eq!(p.gate_blocks_in_sram, 0);
+        }
+        // A network that fits keeps its gate matrix whole (with the network).
+        let small = ModelBytes {
+            network: 3_192,
+            ..paper_f32
+        };
+        let p = choose_placement(WeightsIn::Auto, small, BUDGET).expect("placement");
+        assert_eq!((p.network, p.gate_blocks_in_sram), (Placement::Sram, 0));
+    }
+
+    #[test]
+    fn the_generated_f32_network_splits_its_gate_matrix_between_two_statics() {
+        let m = LstmModel::init(
+            LstmDims {
+                input: 3,
+                embed: 4,
+                hidden: 8,
+                output: 1,
+            },
+            5,
+        );
+        let net = F32Net::arrange(&m).expect("arranges");
+        let sram = format!("{SRAM_SECTION_ATTRIBUTE}\n");
+        let mut s = String::new();
+        write_f32(&mut s, "", &sram, 3, &net);
+        assert!(s.contains(&format!(
+            "{sram}pub static GATES_HEAD: [[[f32; 4]; 12]; 3] = "
+        )));
+        assert!(s.contains("\npub static GATES_TAIL: [[[f32; 4]; 12]; 5] = "));
+        assert!(!s.contains(&format!("{sram}pub static GATES_TAIL")));
+        assert!(s.contains("w_gates: F32GateRows { head: &GATES_HEAD, tail: &GATES_TAIL },"));
+        // Nothing in SRAM: no attribute for the empty head.
+        let mut s = String::new();
+        write_f32(&mut s, "", "", 0, &net);
+        assert!(s.contains("pub static GATES_HEAD: [[[f32; 4]; 12]; 0] = [];"));
+        assert!(!s.contains("link_section"));
+        assert_eq!(Exported::F32(net).gate_blocks(), (12 * 16, 8));
+    }
+
+    #[test]
+    fn forced_and_unbudgeted_choices_place_the_tables_with_the_arrays() {
+        let joint = ModelBytes {
+            network: 4_728,
+            dynamics: 0,
+            linear_stage: 108,
+            ..PAPER_INT16
+        };
+        assert_eq!(
+            tables(WeightsIn::Flash, joint, BUDGET),
+            Some(Placement::Flash)
+        );
+        assert_eq!(tables(WeightsIn::Auto, joint, None), Some(Placement::Flash));
+        assert_eq!(tables(WeightsIn::Sram, joint, None), Some(Placement::Sram));
+        assert_eq!(
+            tables(WeightsIn::Sram, joint, BUDGET),
+            Some(Placement::Sram)
+        );
+        // `sram` keeps the arrays in SRAM and the tables where they fit.
+        assert_eq!(
+            tables(WeightsIn::Sram, PAPER_INT16, BUDGET),
+            Some(Placement::Flash)
+        );
+        // An f32 network reads no tables.
+        let f32_net = ModelBytes {
+            act_tables: 0,
+            ..joint
+        };
+        let p = choose_placement(WeightsIn::Auto, f32_net, BUDGET).expect("placement");
+        assert_eq!(p.act_tables, None);
+        assert!(p.describe().contains("no activation tables (f32)"));
+    }
+
+    #[test]
+    fn the_generated_format_names_the_chosen_tables() {
+        let m = LstmModel::init(
+            LstmDims {
+                input: 3,
+                embed: 4,
+                hidden: 4,
+                output: 1,
+            },
+            5,
+        );
+        let net = QuantNet::<I16Weights>::quantise(&m).expect("quantises");
+        for (p, name) in [
+            (Placement::Sram, "&firmware::nn::act::ACT_TABLES_SRAM;"),
+            (Placement::Flash, "&firmware::nn::act::ACT_TABLES_FLASH;"),
+        ] {
+            let mut s = String::new();
+            write_quant(&mut s, "", p, &net, "I16Weights", quads_i16);
+            let line = s
+                .lines()
+                .find(|l| l.contains("const ACT_TABLES"))
+                .expect("the format names its tables");
+            assert!(line.ends_with(name), "{line}");
+        }
+        assert_eq!(Exported::Int16(net).act_tables_bytes(), 32_768);
+    }
 }

@@ -34,12 +34,13 @@
 //! const _: () = assert!(firmware::nn::format::FeaturePreset::Paper.fits(3, 8, 3));
 //! ```
 
-/// Layout and numerics version of generated model files this firmware reads (7: each
+/// Layout and numerics version of generated model files this firmware reads (8: an
+/// integer network's activation tables, SRAM or flash, `Format::ACT_TABLES`; 7: each
 /// profile's friction adaptation; 6: each compensated joint's drive profile,
 /// `JOINT_PROFILES`; 5: the input layer's
 /// activation, `INPUT_ACTIVATION`, tanh or linear; the `drive` preset's presliding
 /// inputs and load-dependent friction features).
-pub const SCHEMA_VERSION: u32 = 7;
+pub const SCHEMA_VERSION: u32 = 8;
 
 /// Index in a compiled-in dynamics model of each compensated joint: the robot joint
 /// indices when the dynamics cover the whole arm, else (the other joints locked away at

@@ -18,8 +18,33 @@
 //! machine) and checked against the f64 formula by `tables_match_f64`. Both end flat
 //! (sigmoid 11 and 32757, tanh -32767 and 32767), so a saturated index gives the end
 //! value.
+//!
+//! Placement: the values are defined once ([`ACT_TABLE_VALUES`]) and held by two
+//! statics, [`ACT_TABLES_FLASH`] (`.rodata`) and [`ACT_TABLES_SRAM`] (the SRAM input
+//! section of the exporter's model arrays, copied from flash at reset). A compiled-in
+//! network reads the one its model file names (`QuantFormat::ACT_TABLES`, chosen by the
+//! exporter from the model's size against the board's SRAM budget); the linker keeps
+//! only the statics something refers to, so a board image holds one copy (32 KiB).
 
 include!(concat!(env!("OUT_DIR"), "/act_tables.rs"));
+
+/// Both tables, `[sigmoid, tanh]` (rows [`SIGMOID`], [`TANH`]), Q0.15.
+pub type ActTables = [[i16; TABLE_LEN]; 2];
+
+/// The tables in flash (`.rodata`): read through the flash interface and its data cache.
+pub static ACT_TABLES_FLASH: ActTables = ACT_TABLE_VALUES;
+
+/// The tables in SRAM (`.data`, copied from flash at reset): zero wait states. The
+/// attribute line is the one the exporter writes before a model's arrays placed in SRAM.
+#[cfg_attr(
+    target_os = "none",
+    allow(unsafe_code),
+    unsafe(link_section = ".data.model_arrays")
+)]
+pub static ACT_TABLES_SRAM: ActTables = ACT_TABLE_VALUES;
+
+/// Bytes of one copy of the tables (what placing them in SRAM costs).
+pub const ACT_TABLES_BYTES: usize = core::mem::size_of::<ActTables>();
 
 /// Entries per table.
 pub const TABLE_LEN: usize = 8192;
@@ -27,9 +52,9 @@ pub const TABLE_LEN: usize = 8192;
 pub const INDEX_BITS: u32 = 13;
 /// Fraction bits of the table's grid (step `2^-9`).
 pub const GRID_FRAC_BITS: u32 = 9;
-/// Row of the sigmoid in [`ACT_TABLES`].
+/// Row of the sigmoid in [`ActTables`].
 pub const SIGMOID: usize = 0;
-/// Row of tanh in [`ACT_TABLES`].
+/// Row of tanh in [`ActTables`].
 pub const TANH: usize = 1;
 
 const HALF: i32 = (TABLE_LEN / 2) as i32;
@@ -45,28 +70,24 @@ pub fn index(acc: i32, shift: u32) -> i32 {
     (acc >> (shift & 31)).clamp(-HALF, HALF - 1)
 }
 
-/// `f(acc * 2^-(shift + 9))`, Q0.15, for the function in row `f` of [`ACT_TABLES`]
+/// `f(acc * 2^-(shift + 9))`, Q0.15, for the function in row `f` of `tables`
 /// ([`SIGMOID`] or [`TANH`]); `shift` is `E - 9` for an accumulator with `E` fraction bits.
 #[inline(always)]
-pub fn lookup(f: usize, acc: i32, shift: u32) -> i16 {
+pub fn lookup(tables: &ActTables, f: usize, acc: i32, shift: u32) -> i16 {
     let k = (index(acc, shift) + HALF) as usize;
-    ACT_TABLES
-        .get(f)
-        .and_then(|t| t.get(k))
-        .copied()
-        .unwrap_or(0)
+    tables.get(f).and_then(|t| t.get(k)).copied().unwrap_or(0)
 }
 
-/// Logistic sigmoid of `acc * 2^-(shift + 9)`, Q0.15.
+/// Logistic sigmoid of `acc * 2^-(shift + 9)`, Q0.15, from `tables`.
 #[inline(always)]
-pub fn sigmoid_q15(acc: i32, shift: u32) -> i16 {
-    lookup(SIGMOID, acc, shift)
+pub fn sigmoid_q15(tables: &ActTables, acc: i32, shift: u32) -> i16 {
+    lookup(tables, SIGMOID, acc, shift)
 }
 
-/// tanh of `acc * 2^-(shift + 9)`, Q0.15.
+/// tanh of `acc * 2^-(shift + 9)`, Q0.15, from `tables`.
 #[inline(always)]
-pub fn tanh_q15(acc: i32, shift: u32) -> i16 {
-    lookup(TANH, acc, shift)
+pub fn tanh_q15(tables: &ActTables, acc: i32, shift: u32) -> i16 {
+    lookup(tables, TANH, acc, shift)
 }
 
 /// The identity of an accumulator, requantised: `sat16(acc >> shift)` (one `SSAT #16`
@@ -101,9 +122,19 @@ mod tests {
         1.0 / (1.0 + (-x).exp())
     }
 
+    const T: &ActTables = &ACT_TABLES_FLASH;
+
+    #[test]
+    fn both_placements_hold_the_same_values() {
+        assert_eq!(ACT_TABLES_FLASH, ACT_TABLE_VALUES);
+        assert_eq!(ACT_TABLES_SRAM, ACT_TABLE_VALUES);
+        assert!(!core::ptr::eq(&ACT_TABLES_FLASH, &ACT_TABLES_SRAM));
+        assert_eq!(ACT_TABLES_BYTES, 32_768);
+    }
+
     #[test]
     fn tables_match_f64() {
-        let rows = ACT_TABLES[SIGMOID].iter().zip(&ACT_TABLES[TANH]);
+        let rows = T[SIGMOID].iter().zip(&T[TANH]);
         for (k, (&sig, &tanh)) in rows.enumerate() {
             let x = (k as f64 - 4096.0 + 0.5) / 512.0;
             let s = ((sigmoid(x) * 32768.0).round() as i32).clamp(0, 32767);
@@ -116,7 +147,7 @@ mod tests {
     /// Worst |error| in Q0.15 LSB over a dense sweep of [-12, 12] at Q3.12 (shift 3).
     fn max_err_lsb(f: usize, g: fn(f64) -> f64) -> f64 {
         (-12 * 4096..12 * 4096)
-            .map(|a: i32| (lookup(f, a, 3) as f64 - g(a as f64 / 4096.0) * 32768.0).abs())
+            .map(|a: i32| (lookup(T, f, a, 3) as f64 - g(a as f64 / 4096.0) * 32768.0).abs())
             .fold(0.0, f64::max)
     }
 
@@ -124,19 +155,22 @@ mod tests {
     fn tanh_error_bound() {
         let e = max_err_lsb(TANH, f64::tanh);
         assert!(e < 33.0, "tanh max error {e} LSB");
-        assert_eq!(tanh_q15(i32::MAX, 1), 32767);
-        assert_eq!(tanh_q15(i32::MIN, 1), -32767);
+        assert_eq!(tanh_q15(T, i32::MAX, 1), 32767);
+        assert_eq!(tanh_q15(T, i32::MIN, 1), -32767);
         // Odd: the midpoint grid is symmetric about zero.
-        assert_eq!(tanh_q15(-1, 0), -tanh_q15(0, 0));
+        assert_eq!(tanh_q15(T, -1, 0), -tanh_q15(T, 0, 0));
     }
 
     #[test]
     fn sigmoid_error_bound() {
         let e = max_err_lsb(SIGMOID, sigmoid);
         assert!(e < 12.0, "sigmoid max error {e} LSB");
-        assert_eq!(sigmoid_q15(i32::MIN, 1), 11);
-        assert_eq!(sigmoid_q15(i32::MAX, 1), 32757);
-        assert_eq!(sigmoid_q15(-1, 0) as i32 + sigmoid_q15(0, 0) as i32, 32768);
+        assert_eq!(sigmoid_q15(T, i32::MIN, 1), 11);
+        assert_eq!(sigmoid_q15(T, i32::MAX, 1), 32757);
+        assert_eq!(
+            sigmoid_q15(T, -1, 0) as i32 + sigmoid_q15(T, 0, 0) as i32,
+            32768
+        );
     }
 
     #[test]

@@ -65,8 +65,9 @@ pub struct I8Weights;
 
 /// The integer format of one compiled-in network: its weight format, its input
 /// layer's activation and the activation-index shifts of its layers (from the
-/// power-of-two scales the exporter chose). Constants, so that the assembly kernel can
-/// encode them as immediates; each generated model file defines its own `Format` type.
+/// power-of-two scales the exporter chose), and where its activation tables live.
+/// Constants, so that the assembly kernel can encode them as immediates; each generated
+/// model file defines its own `Format` type.
 pub trait QuantFormat {
     /// Weight storage format.
     type Weights: WeightFormat;
@@ -79,6 +80,9 @@ pub trait QuantFormat {
     /// Index shift of each gate's accumulators (`P_g + 15 - 9`), order `i, f, g, o`,
     /// each `1..=31`.
     const GATE_SHIFTS: [u32; 4];
+    /// The activation tables the network reads: [`act::ACT_TABLES_SRAM`] or
+    /// [`act::ACT_TABLES_FLASH`], the exporter's placement for the model.
+    const ACT_TABLES: &'static act::ActTables;
 }
 
 /// The recurrent state of an integer network: the packed `[e; h]` vector (the `h`

@@ -6,9 +6,9 @@
 //!
 //! | precision | weights | activations | accumulator | kernel |
 //! |---|---|---|---|---|
-//! | [`F32Lstm`] | f32 | f32 | f32, sequential per row | `dsp::matvec4_f32`, `math::sigmoid_fast` / `tanh_fast` |
+//! | [`F32Lstm`] | f32 | f32 | f32, sequential per row | `dsp::matvec4_f32` (input layer), `dsp::matvec4_f32_parts` (gates, [`F32GateRows`]), `math::sigmoid_fast` / `tanh_fast` |
 //! | [`QuantLstm`] with [`I16Weights`] | int16, per-gate power-of-two scale | int16 | i32 (SMLAD) | `dsp::lstm_small_i16` (`[e; h]` of at most 16 words), else `dsp::matvec4_i16` |
-//! | [`QuantLstm`] with [`I8Weights`] | int8, per-gate power-of-two scale | int16 | i32 (SXTB16 + SMLAD) | `dsp::dot4_i8` |
+//! | [`QuantLstm`] with [`I8Weights`] | int8, per-gate power-of-two scale | int16 | i32 (SXTB16 + SMLAD) | `dsp::matvec4_i8` (gates), `dsp::dot4_i8` |
 //!
 //! # Integer scheme (in the spirit of CMSIS-NN's q15 kernels and TFLM's int16x8 LSTM)
 //!
@@ -115,6 +115,10 @@ impl WeightFormat for I8Weights {
     fn dot4(acc: [i32; 4], w: &[Self::Quad], x: &[[u32; 2]]) -> [i32; 4] {
         dsp::dot4_i8(acc, w, x)
     }
+    #[inline(always)]
+    fn matvec4(acc: &mut [[i32; 4]], bias: &[[i32; 4]], w: &[Self::Quad], x: &[[u32; 2]]) {
+        dsp::matvec4_i8(acc, bias, w, x)
+    }
     fn pack(w: [[i32; 4]; 4]) -> Self::Quad {
         w.map(|row| dsp::pack_i8(row.map(|v| v as i8)))
     }
@@ -187,6 +191,8 @@ pub struct QuantView<'a, F: WeightFormat> {
     pub gate_bias: &'a [[i32; 4]],
     /// Activation-index shifts of the gates ([`QuantFormat::GATE_SHIFTS`]).
     pub gate_shift: [u32; 4],
+    /// The activation tables ([`QuantFormat::ACT_TABLES`]).
+    pub act_tables: &'a act::ActTables,
     /// `[OB * HQ]` output layer.
     pub out_w: &'a [F::Quad],
     /// `[OB]` output scale.
@@ -296,7 +302,7 @@ impl<F: WeightFormat> QuantView<'_, F> {
                 if linear {
                     act::linear_i16(a, self.in_shift)
                 } else {
-                    act::tanh_q15(a, self.in_shift)
+                    act::tanh_q15(self.act_tables, a, self.in_shift)
                 }
             });
             *zq_e = [dsp::pack(e[0], e[1]), dsp::pack(e[2], e[3])];
@@ -310,8 +316,8 @@ impl<F: WeightFormat> QuantView<'_, F> {
             .zip(c.chunks_exact_mut(2))
             .zip(h_new.as_flattened_mut());
         for ((a2, c2), hw) in cells {
-            let h0 = cell_update(&a2[0], &self.gate_shift, &mut c2[0]);
-            let h1 = cell_update(&a2[1], &self.gate_shift, &mut c2[1]);
+            let h0 = cell_update(self.act_tables, &a2[0], &self.gate_shift, &mut c2[0]);
+            let h1 = cell_update(self.act_tables, &a2[1], &self.gate_shift, &mut c2[1]);
             *hw = dsp::pack(h0, h1);
         }
         if let Some(hz) = z.get_mut(d.embed_blocks..) {
@@ -323,22 +329,22 @@ impl<F: WeightFormat> QuantView<'_, F> {
     }
 }
 
-/// One LSTM cell from its four gate accumulators (i, f, g, o) and their index
-/// shifts: updates the int16 Q4.11 cell state `c` (rounded, saturating) and returns
+/// One LSTM cell from its four gate accumulators (i, f, g, o), their index shifts and
+/// the activation tables: updates the int16 Q4.11 cell state `c` (rounded, saturating) and returns
 /// the Q0.15 hidden value (the instruction sequence of `dsp::lstm_small_i16`'s cell,
 /// see the module docs). No intermediate can overflow: `|c * f| <= 2^30`,
 /// `|i * g| >> 4 <= 2^26`.
 #[inline(always)]
-pub fn cell_update(acc: &[i32; 4], shift: &[u32; 4], c: &mut i16) -> i16 {
-    let i = act::sigmoid_q15(acc[0], shift[0]) as i32;
-    let f = act::sigmoid_q15(acc[1], shift[1]) as i32;
-    let g = act::tanh_q15(acc[2], shift[2]) as i32;
-    let o = act::sigmoid_q15(acc[3], shift[3]) as i32;
+pub fn cell_update(tables: &act::ActTables, acc: &[i32; 4], shift: &[u32; 4], c: &mut i16) -> i16 {
+    let i = act::sigmoid_q15(tables, acc[0], shift[0]) as i32;
+    let f = act::sigmoid_q15(tables, acc[1], shift[1]) as i32;
+    let g = act::tanh_q15(tables, acc[2], shift[2]) as i32;
+    let o = act::sigmoid_q15(tables, acc[3], shift[3]) as i32;
     // SMLABB (c * f + round), SMULBB (i * g), ADD with ASR, SSAT #16 with ASR #15.
     let sum = *c as i32 * f + CELL_ROUND + ((i * g) >> CELL_IG_SHIFT);
     let cn = (sum >> ACT_FRAC_BITS).clamp(i16::MIN as i32, i16::MAX as i32) as i16;
     *c = cn;
-    let tc = act::tanh_q15(cn as i32, CELL_TANH_SHIFT) as i32;
+    let tc = act::tanh_q15(tables, cn as i32, CELL_TANH_SHIFT) as i32;
     ((o * tc) >> 15) as i16
 }
 
@@ -445,6 +451,7 @@ impl<
             gate_w: self.gate_w.as_flattened(),
             gate_bias: &self.gate_bias,
             gate_shift: F::GATE_SHIFTS,
+            act_tables: F::ACT_TABLES,
             out_w: self.out_w.as_flattened(),
             out_scale: &self.out_scale,
             out_offset: &self.out_offset,
@@ -526,8 +533,11 @@ pub struct F32View<'a> {
     pub b_in: &'a [[f32; 4]],
     /// Activation after the input layer.
     pub input_activation: InputActivation,
-    /// `[H * Z]`, `Z = E + H`.
+    /// The first blocks of the gate matrix (`[HS * Z]`, `Z = E + H`): with
+    /// [`Self::w_gates_tail`] the `[H * Z]` gate matrix ([`F32GateRows`]).
     pub w_gates: &'a [[f32; 4]],
+    /// The other `H - HS` blocks of the gate matrix (`[(H - HS) * Z]`).
+    pub w_gates_tail: &'a [[f32; 4]],
     /// `[H]`
     pub b_gates: &'a [[f32; 4]],
     /// `[OB * H]`
@@ -557,7 +567,11 @@ impl F32View<'_> {
             ("input_inv_std", d.input, self.input_inv_std.len()),
             ("w_in", d.embed_blocks * d.input, self.w_in.len()),
             ("b_in", d.embed_blocks, self.b_in.len()),
-            ("w_gates", d.hidden * z, self.w_gates.len()),
+            (
+                "w_gates",
+                d.hidden * z,
+                self.w_gates.len() + self.w_gates_tail.len(),
+            ),
             ("b_gates", d.hidden, self.b_gates.len()),
             ("w_out", d.output_blocks * d.hidden, self.w_out.len()),
             ("b_out", d.output_blocks, self.b_out.len()),
@@ -606,13 +620,16 @@ impl F32View<'_> {
             let v = [e[0] + b[0], e[1] + b[1], e[2] + b[2], e[3] + b[3]];
             *e = if linear { v } else { math::tanh_fast4(v) };
         }
-        // LSTM gates: the whole layer in one kernel call, then the cells.
+        // LSTM gates: the whole layer in one kernel call per part of the gate matrix
+        // (each block only reads its own rows), then the cells.
         let z_in: &[f32] = z;
-        dsp::matvec4_f32(
+        dsp::matvec4_f32_parts(
             acc,
             self.w_gates,
+            self.w_gates_tail,
             z_in.get(..e_len + d.hidden).unwrap_or(z_in),
         );
+        let acc: &[[f32; 4]] = acc;
         // The cells: first each cell's gates and new c (`h_new` holds o for now), then
         // h = o tanh(c) four cells at a time (the same bits as one at a time).
         let rows = acc.iter().zip(self.b_gates);
@@ -680,6 +697,20 @@ impl InputLayer for LinearInput {
     const ACTIVATION: InputActivation = InputActivation::Linear;
 }
 
+/// The gate matrix of a compiled-in f32 network, `H` blocks over `Z` columns (block
+/// `j` = rows `i_j, f_j, g_j, o_j`, column-interleaved), as two statics so that the
+/// exporter can place them apart: the first blocks (`head`) in SRAM and the rest
+/// (`tail`) in flash when the whole matrix does not fit the board's SRAM budget (one
+/// of them is empty otherwise). The generated file asserts at compile time that
+/// together they hold `H` blocks.
+#[derive(Clone, Copy, Debug)]
+pub struct F32GateRows<const Z: usize> {
+    /// Blocks `0..HS`.
+    pub head: &'static [[[f32; 4]; Z]],
+    /// Blocks `HS..H`.
+    pub tail: &'static [[[f32; 4]; Z]],
+}
+
 /// The f32 network of fixed sizes in the exporter's layout: `I` inputs, input layer
 /// of `E = 4 * EB` rows with the activation `A` ([`InputLayer`]), `H` cells over
 /// `Z = E + H` columns (`[e; h]`), `O` outputs in `OB` blocks. Each block stores its 4 rows column-interleaved (`[k][row]`);
@@ -707,8 +738,9 @@ pub struct F32Lstm<
     pub b_in: [[f32; 4]; EB],
     /// Activation after the input layer.
     pub input_layer: A,
-    /// Gate weights over `[e; h]`, block `j` = rows `i_j, f_j, g_j, o_j`.
-    pub w_gates: [[[f32; 4]; Z]; H],
+    /// Gate weights over `[e; h]`, block `j` = rows `i_j, f_j, g_j, o_j`, in two
+    /// statics ([`F32GateRows`]).
+    pub w_gates: F32GateRows<Z>,
     /// Gate bias (`bias_ih + bias_hh`).
     pub b_gates: [[f32; 4]; H],
     /// Output weights (rows beyond `O` zero).
@@ -795,7 +827,8 @@ impl<
             w_in: self.w_in.as_flattened(),
             b_in: &self.b_in,
             input_activation: A::ACTIVATION,
-            w_gates: self.w_gates.as_flattened(),
+            w_gates: self.w_gates.head.as_flattened(),
+            w_gates_tail: self.w_gates.tail.as_flattened(),
             b_gates: &self.b_gates,
             w_out: self.w_out.as_flattened(),
             b_out: &self.b_out,
@@ -832,6 +865,8 @@ mod tests {
 
     /// Gate accumulators with index shift 1: value `acc / 1024`.
     const SHIFTS: [u32; 4] = [1; 4];
+    /// The tables (either placement holds the same values).
+    const T: &act::ActTables = &act::ACT_TABLES_FLASH;
 
     #[test]
     fn cell_update_rounds_to_nearest_q4_11() {
@@ -841,13 +876,13 @@ mod tests {
             for &b in &accs {
                 for &c0 in &cells {
                     let acc = [a, b, -a / 2, b / 3];
-                    let i = act::sigmoid_q15(acc[0], 1) as f64;
-                    let f = act::sigmoid_q15(acc[1], 1) as f64;
-                    let g = act::tanh_q15(acc[2], 1) as f64;
+                    let i = act::sigmoid_q15(T, acc[0], 1) as f64;
+                    let f = act::sigmoid_q15(T, acc[1], 1) as f64;
+                    let g = act::tanh_q15(T, acc[2], 1) as f64;
                     // c' in Q4.11 units, exact: c f / 2^15 + i g / 2^19.
                     let exact = c0 as f64 * f / 32768.0 + i * g / 524288.0;
                     let mut c = c0;
-                    cell_update(&acc, &SHIFTS, &mut c);
+                    cell_update(T, &acc, &SHIFTS, &mut c);
                     let want = exact.clamp(i16::MIN as f64, i16::MAX as f64);
                     assert!(
                         (c as f64 - want).abs() <= 0.5 + 1.0 / 32768.0,
@@ -863,10 +898,10 @@ mod tests {
         // i, f, o ~ 1 and g ~ +-1 push c past +-16.
         for (g_acc, end) in [(9000, i16::MAX), (-9000, i16::MIN)] {
             let mut c = end;
-            let h = cell_update(&[9000, 9000, g_acc, 9000], &SHIFTS, &mut c);
+            let h = cell_update(T, &[9000, 9000, g_acc, 9000], &SHIFTS, &mut c);
             assert_eq!(c, end);
-            let o_tanh = act::sigmoid_q15(9000, 1) as i32
-                * act::tanh_q15(end as i32, CELL_TANH_SHIFT) as i32;
+            let o_tanh = act::sigmoid_q15(T, 9000, 1) as i32
+                * act::tanh_q15(T, end as i32, CELL_TANH_SHIFT) as i32;
             assert_eq!(h as i32, o_tanh >> 15);
         }
     }

@@ -276,6 +276,9 @@ pub fn render_export(m: &LstmModel, a: &ExportArgs) -> Result<(Exported, Placeme
         network: net.flash_bytes(),
         dynamics: dynamics.as_ref().map_or(0, dynamics_bytes),
         linear_stage: m.dims.output * firmware::features::FRICTION_FEATURES * 4,
+        act_tables: net.act_tables_bytes(),
+        gate_block: net.gate_blocks().0,
+        gate_blocks: net.gate_blocks().1,
     };
     let placement = choose_placement(a.weights_in, bytes, sram.map(|b| b.model_bytes()))?;
     let meta = ExportMeta {
