@@ -14,7 +14,7 @@ packed here (plain CDR, little endian, the layout every ROS 2 middleware records
 
     python3 -m venv venv && venv/bin/pip install mcap
     cargo run -p model-export -- simulate --seeded-trajectory 1 --joints 4,5,6 --seed 1 -o /tmp/sim.csv
-    venv/bin/python scripts/make_mcap_fixture.py /tmp/sim.csv robots/default.toml model-export/tests/fixtures
+    venv/bin/python scripts/make_mcap_fixture.py /tmp/sim.csv robots/default.toml crates/logs/tests/fixtures
 
 Outputs: joint_states.mcap and joint_states.csv (header t_s, q1..qN, qd1..qN, tau1..tauN).
 """

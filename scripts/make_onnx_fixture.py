@@ -8,7 +8,7 @@ node), records the feature names in the model's metadata_props, and streams a re
 sequence through the PyTorch module.
 
     python3 -m venv venv && venv/bin/pip install torch onnx
-    venv/bin/python scripts/make_onnx_fixture.py model-export/tests/fixtures
+    venv/bin/python scripts/make_onnx_fixture.py crates/compnet/tests/fixtures
 
 Outputs: torch_lstm.onnx and onnx_reference.csv (columns t, x0.., y0..).
 """
@@ -72,4 +72,4 @@ def main(out_dir: Path):
 
 
 if __name__ == "__main__":
-    main(Path(sys.argv[1] if len(sys.argv) > 1 else "model-export/tests/fixtures"))
+    main(Path(sys.argv[1] if len(sys.argv) > 1 else "crates/compnet/tests/fixtures"))

@@ -9,7 +9,7 @@ locks every joint outside the base-to-tip chain at a chosen position, draws 500 
 random states (q, qd, qdd) of the chain and writes Pinocchio's RNEA torques for them.
 
     python3 -m venv venv && venv/bin/pip install pin example-robot-data
-    venv/bin/python scripts/make_pinocchio_fixture.py model-export/tests/fixtures/pinocchio
+    venv/bin/python scripts/make_pinocchio_fixture.py crates/robot/tests/fixtures/pinocchio
 
 Outputs per robot NAME: NAME.urdf (stripped), NAME.json (base and tip link, positions of
 the joints outside the chain, the chain's joint names, seed, Pinocchio version) and
@@ -158,7 +158,7 @@ def make(name, rel, tip, side, out):
 
 
 def main():
-    out = Path(sys.argv[1] if len(sys.argv) > 1 else "model-export/tests/fixtures/pinocchio")
+    out = Path(sys.argv[1] if len(sys.argv) > 1 else "crates/robot/tests/fixtures/pinocchio")
     out.mkdir(parents=True, exist_ok=True)
     for name, (rel, tip, side) in ROBOTS.items():
         make(name, rel, tip, side, out)

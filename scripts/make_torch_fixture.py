@@ -8,7 +8,7 @@ same with a plain nn.Linear input layer (no activation: `input_activation` `line
 from its own seed.
 
     pip install torch safetensors
-    python3 scripts/make_torch_fixture.py model-export/tests/fixtures
+    python3 scripts/make_torch_fixture.py crates/compnet/tests/fixtures
 
 Outputs: torch_lstm.safetensors and torch_reference.csv (tanh input layer),
 torch_linear.safetensors and torch_linear_reference.csv (linear input layer); the CSVs
@@ -78,4 +78,4 @@ def main(out_dir: Path):
 
 
 if __name__ == "__main__":
-    main(Path(sys.argv[1] if len(sys.argv) > 1 else "model-export/tests/fixtures"))
+    main(Path(sys.argv[1] if len(sys.argv) > 1 else "crates/compnet/tests/fixtures"))

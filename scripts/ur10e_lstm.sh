@@ -4,6 +4,7 @@
 # `feedforward` preset on seven runs (validated on an eighth), evaluate on two held-out runs.
 # Usage: bash scripts/ur10e_lstm.sh OUT_DIR   (data: $DATASETS_DIR/ur10e, default
 # ../shared/datasets/ur10e beside the workspace; nothing is copied into the project).
+# Environment (optional): EPOCHS (60), the training epochs of every network.
 set -euo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
 out="${1:?usage: ur10e_lstm.sh OUT_DIR}"
@@ -34,7 +35,7 @@ for form in next increment feedforward; do
     feedforward) p=(--preset feedforward) ;;
   esac
   "$ME" train --data "${train%,}" --validation-data "data/$val.csv" "${p[@]}" --joints 1,2,3,4,5,6 \
-    --epochs 60 --lr 0.003 --seed 1 --quiet --out "lstm_$form.safetensors" \
+    --epochs "${EPOCHS:-60}" --lr 0.003 --seed 1 --quiet --out "lstm_$form.safetensors" \
     --loss-plot "loss_$form.svg" --report "train_$form.json" > "train_$form.txt"
   for t in "${tests[@]}"; do
     echo "== $form on $t"

@@ -15,7 +15,10 @@ use robot::RobotSource;
 use std::path::PathBuf;
 use std::time::Instant;
 
-const ROBOT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/ur_type_6r.toml");
+const ROBOT: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/../crates/identify/tests/data/ur_type_6r.toml"
+);
 const SAMPLES: usize = 100_000;
 
 fn simulate(m: &RobotBaseModel, n: usize) -> Samples {

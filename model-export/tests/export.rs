@@ -60,7 +60,7 @@ fn regenerating_the_golden_models_gives_the_committed_files() {
 
 #[test]
 fn quantised_networks_track_the_f32_step_on_the_pytorch_fixture() {
-    let fx = workspace().join("model-export/tests/fixtures/torch_lstm.safetensors");
+    let fx = workspace().join("crates/compnet/tests/fixtures/torch_lstm.safetensors");
     let m = compnet::io::read_model(&fx).expect("fixture");
     let inputs = fw_export::golden_inputs(m.dims.input, 400);
     let table =
@@ -121,7 +121,7 @@ fn the_pytorch_fixtures_export_within_each_precisions_bound() {
 }
 
 fn exported_forms_match_pytorch(name: &str, reference: &str) {
-    let fixtures = workspace().join("model-export/tests/fixtures");
+    let fixtures = workspace().join("crates/compnet/tests/fixtures");
     let m = compnet::io::read_model(&fixtures.join(name)).expect("fixture");
     let t = compnet::data::Table::read(&fixtures.join(reference)).expect("reference");
     let col = |n: String| t.column(&n).expect("column").to_vec();
@@ -157,7 +157,7 @@ fn regenerating_the_linear_input_golden_models_gives_the_committed_files() {
     for p in Precision::ALL {
         let out = dir.path().join(format!("golden_linear_{}.rs", p.name()));
         let mut a = args(out.clone(), p);
-        a.model = Some(workspace().join("model-export/tests/fixtures/torch_linear.safetensors"));
+        a.model = Some(workspace().join("crates/compnet/tests/fixtures/torch_linear.safetensors"));
         a.joints = vec![1, 2];
         a.allow_worse = true;
         let m = model_export::cmd::export::model(&a).expect("model");

@@ -723,7 +723,8 @@ fn outputs_honour_the_umask_of_the_process() {
     use std::os::unix::fs::PermissionsExt;
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("out.safetensors");
-    let torch = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/torch_lstm.safetensors");
+    let torch =
+        test_support::workspace_root().join("crates/compnet/tests/fixtures/torch_lstm.safetensors");
     let st = std::process::Command::new("sh")
         .args([
             "-c",

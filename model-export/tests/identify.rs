@@ -1,180 +1,16 @@
-//! Identification end to end: simulated logs of a UR-type 6R arm (torque = regressor ×
-//! true parameters) written as CSV, identified through the library and through the
-//! `model-export identify` binary; bad inputs through the binary.
+//! Identification end to end through the `model-export identify` and `torque` binaries:
+//! simulated logs of a UR-type 6R arm written as CSV, identified and evaluated; bad inputs
+//! named by file, line and field (the library's own tests: `crates/identify/tests/`).
 #![allow(clippy::needless_range_loop)]
 
-use identify::identified::{BASE_SEED, ModelSelection, RobotBaseModel, load_robot, predict_log};
 use identify::model_file::ModelFile;
-use identify::pipeline::{self, LinearModel};
-use identify::{IdentifyOptions, Weighting, solve};
 use logs::Samples;
-use nalgebra::DVector;
-use rand::{Rng, SeedableRng};
-use rand_chacha::ChaCha8Rng;
-use rand_distr::{Distribution, Normal};
-use robot::RobotSource;
-use robot::base::BaseParameters;
-use robot::dynamics::firmware_model::FirmwareModel;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
 
-const ROBOT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/ur_type_6r.toml");
-
-fn robot_model() -> RobotBaseModel {
-    RobotBaseModel::new(
-        load_robot(&RobotSource::File(ROBOT.into()), &ModelSelection::default())
-            .unwrap()
-            .robot,
-    )
-    .unwrap()
-}
-
-/// A Fourier excitation (5 harmonics, 10 s period) sampled at `t`.
-fn fourier_states(t: &[f64], seed: u64) -> Samples {
-    let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let w = 2.0 * std::f64::consts::PI / 10.0;
-    let n = 6;
-    let mut s = Samples {
-        path: PathBuf::from("sim"),
-        sha256: String::new(),
-        time_s: t.to_vec(),
-        q_rad: vec![Vec::new(); n],
-        qd_rad_s: vec![Vec::new(); n],
-        qdd_rad_s2: vec![Vec::new(); n],
-        torque_nm: None,
-    };
-    for j in 0..n {
-        let q0: f64 = rng.gen_range(-1.0..1.0);
-        let c: Vec<(f64, f64)> = (0..5)
-            .map(|_| (rng.gen_range(-0.5..0.5), rng.gen_range(-0.5..0.5)))
-            .collect();
-        for &tk in t {
-            let (mut q, mut qd, mut qdd) = (q0, 0.0, 0.0);
-            for (h, (a, b)) in c.iter().enumerate() {
-                let wl = w * (h + 1) as f64;
-                let (sn, cs) = (wl * tk).sin_cos();
-                q += a / wl * sn - b / wl * cs;
-                qd += a * cs + b * sn;
-                qdd += -a * wl * sn + b * wl * cs;
-            }
-            s.q_rad[j].push(q);
-            s.qd_rad_s[j].push(qd);
-            s.qdd_rad_s2[j].push(qdd);
-        }
-    }
-    s
-}
-
-// Noise-free recovery: every base parameter to 1e-6 relative; parameters whose true
-// value is exactly 0 (no relative error exists) to 1e-9 of the largest parameter.
-
-/// True base parameters: those of the robot's nominal standard parameters.
-fn true_beta(m: &RobotBaseModel) -> DVector<f64> {
-    m.base.beta(&m.robot.standard_parameters())
-}
-
-fn simulate(m: &RobotBaseModel, samples: usize, seed: u64, noise_nm: Option<&[f64]>) -> Samples {
-    let t: Vec<f64> = (0..samples).map(|k| k as f64 * 0.01).collect();
-    let mut s = fourier_states(&t, seed);
-    let mut tau = pipeline::predict(m, &true_beta(m), &s);
-    if let Some(sig) = noise_nm {
-        let mut rng = ChaCha8Rng::seed_from_u64(seed + 1);
-        for (j, col) in tau.iter_mut().enumerate() {
-            let d = Normal::new(0.0, sig[j]).unwrap();
-            col.iter_mut().for_each(|v| *v += d.sample(&mut rng));
-        }
-    }
-    s.torque_nm = Some(tau);
-    s
-}
-
-#[test]
-fn six_dof_noise_free_recovers_base_parameters_to_1e_6() {
-    let m = robot_model();
-    assert_eq!(m.base.count(), m.parameter_names().len());
-    let logs = [simulate(&m, 4000, 1, None)];
-    let beta = true_beta(&m);
-    let scale = beta.amax();
-    for w in [Weighting::Ordinary, Weighting::PerJointFromOls] {
-        let mut ne = pipeline::accumulate(&m, &logs);
-        let opt = IdentifyOptions {
-            weighting: w.clone(),
-            ..Default::default()
-        };
-        let id = solve(&mut ne, &m.parameter_names(), &opt).unwrap();
-        for i in 0..beta.len() {
-            let err = (id.values[i] - beta[i]).abs();
-            assert!(
-                err <= (1e-6 * beta[i].abs()).max(1e-9 * scale),
-                "{w:?} {}: {} vs {} ({})",
-                m.parameter_names()[i],
-                id.values[i],
-                beta[i],
-                m.expressions()[i]
-            );
-        }
-    }
-}
-
-#[test]
-fn six_dof_noisy_estimates_lie_within_three_std() {
-    let m = robot_model();
-    let sigma = [1.0, 1.0, 0.5, 0.2, 0.2, 0.1];
-    let logs = [simulate(&m, 20_000, 2, Some(&sigma))];
-    let beta = true_beta(&m);
-    let mut ne = pipeline::accumulate(&m, &logs);
-    let opt = IdentifyOptions {
-        weighting: Weighting::PerJointFromOls,
-        ..Default::default()
-    };
-    let id = solve(&mut ne, &m.parameter_names(), &opt).unwrap();
-    let mut worst: f64 = 0.0;
-    for i in 0..beta.len() {
-        let z = (id.values[i] - beta[i]).abs() / id.std[i];
-        worst = worst.max(z);
-        assert!(
-            z < 3.0,
-            "{}: {} vs {} std {}",
-            m.parameter_names()[i],
-            id.values[i],
-            beta[i],
-            id.std[i]
-        );
-    }
-    for j in 0..6 {
-        assert!(
-            (id.joint_sigma_nm[j] / sigma[j] - 1.0).abs() < 0.05,
-            "{:?}",
-            id.joint_sigma_nm
-        );
-    }
-    println!(
-        "largest |error| / std over {} base parameters: {worst:.2}",
-        beta.len()
-    );
-}
-
-#[test]
-fn firmware_f32_model_matches_f64_regressor_with_identified_parameters() {
-    let m = robot_model();
-    let s = simulate(&m, 500, 3, None);
-    let theta = m.equivalent_standard(&true_beta(&m));
-    let fw = FirmwareModel::build(&m.robot, &theta).unwrap();
-    let joints = m.modelled_log_joints();
-    let p32 = predict_log(&fw, &joints, &s);
-    let p64 = pipeline::predict(&m, &true_beta(&m), &s);
-    let scale = p64.iter().flatten().fold(0.0f64, |a, v| a.max(v.abs()));
-    let diff = pipeline::max_abs_difference(&p32, &p64);
-    assert!(
-        diff < 1e-4 * scale,
-        "max diff {diff} (torque scale {scale})"
-    );
-    // The base parameters recomputed with the fixed seed are identical.
-    let again = BaseParameters::compute(&m.robot, BASE_SEED).unwrap();
-    assert_eq!(again.expressions(), m.expressions());
-}
-
-// ---- through the binary ----
+#[path = "../../crates/identify/tests/support/arm.rs"]
+mod arm;
+use arm::{ROBOT, robot_model, simulate, true_beta};
 
 fn bin() -> Command {
     Command::new(env!("CARGO_BIN_EXE_model-export"))
@@ -221,7 +57,7 @@ fn cli_identify_recovers_parameters_and_torque_evaluates_them() {
     write_log(&val, &simulate(&m, 1000, 5, None));
     let model = d.path().join("model.json");
     let out = bin()
-        .args(["identify", "--robot", ROBOT, "--log"])
+        .args(["identify", "--robot", ROBOT.as_str(), "--log"])
         .arg(&log)
         .arg("--validate")
         .arg(&val)
@@ -271,7 +107,7 @@ fn cli_identify_recovers_parameters_and_torque_evaluates_them() {
     for with_model in [true, false] {
         let csv = d.path().join(format!("tau{with_model}.csv"));
         let mut c = bin();
-        c.args(["torque", "--robot", ROBOT, "--log"])
+        c.args(["torque", "--robot", ROBOT.as_str(), "--log"])
             .arg(&val)
             .arg("-o")
             .arg(&csv)
@@ -352,7 +188,7 @@ fn cli_bad_inputs_name_file_line_and_field() {
         std::fs::write(&p, l.join("\n") + "\n").unwrap();
         p
     };
-    let robot = Path::new(ROBOT);
+    let robot = Path::new(ROBOT.as_str());
 
     // NaN cell: line 5, column 3 (q2).
     let mut cells: Vec<String> = lines[4].split(',').map(str::to_string).collect();
@@ -424,10 +260,11 @@ fn cli_bad_inputs_name_file_line_and_field() {
     let e = identify_err(&urdf, &good, &["--layout", "torque"]);
     assert!(e.contains("bad.urdf"), "{e}");
     let toml = d.path().join("bad.toml");
-    let src =
-        std::fs::read_to_string(ROBOT)
-            .unwrap()
-            .replacen("mass = 13.051", "mass = \"heavy\"", 1);
+    let src = std::fs::read_to_string(ROBOT.as_str()).unwrap().replacen(
+        "mass = 13.051",
+        "mass = \"heavy\"",
+        1,
+    );
     std::fs::write(&toml, &src).unwrap();
     let mass_line = src.lines().position(|l| l.contains("\"heavy\"")).unwrap() + 1;
     let e = identify_err(&toml, &good, &["--layout", "torque"]);

@@ -30,7 +30,7 @@ fn readme_bag_and_onnx_commands_run() {
             .split_whitespace()
             .skip(1)
             .map(|a| {
-                if a.starts_with("model-export/") || a.starts_with("robots/") {
+                if a.starts_with("crates/") || a.starts_with("robots/") {
                     root.join(a).display().to_string()
                 } else {
                     a.to_string()

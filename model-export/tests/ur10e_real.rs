@@ -5,16 +5,7 @@
 //! it is absent the test prints a skip line and passes.
 
 use identify::model_file::ModelFile;
-use std::path::PathBuf;
 use std::process::Command;
-
-fn datasets_dir() -> Option<PathBuf> {
-    let dir = match std::env::var_os("DATASETS_DIR") {
-        Some(d) => PathBuf::from(d),
-        None => PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/datasets"),
-    };
-    dir.join("ur10e/ur10e.urdf").exists().then_some(dir)
-}
 
 /// Identification runs (no payload) and held-out runs (no payload).
 const IDENTIFY: [&str; 5] = [
@@ -34,13 +25,9 @@ const HELD_OUT: [&str; 5] = [
 
 #[test]
 fn ur10e_identification_predicts_held_out_runs() {
-    let Some(data) = datasets_dir() else {
-        println!(
-            "skipped: UR10e data not found (set DATASETS_DIR or provide ../shared/datasets/ur10e)"
-        );
+    let Some(ur) = test_support::ur10e_dir() else {
         return;
     };
-    let ur = data.join("ur10e");
     let out_dir = tempfile::tempdir().unwrap();
     let model = out_dir.path().join("ur10e-model.json");
     let mut cmd = Command::new(env!("CARGO_BIN_EXE_model-export"));
@@ -125,13 +112,9 @@ fn ur10e_identification_predicts_held_out_runs() {
 /// stage alone.
 #[test]
 fn ur10e_drive_compensator_beats_the_linear_baseline_on_a_held_out_run() {
-    let Some(data) = datasets_dir() else {
-        println!(
-            "skipped: UR10e data not found (set DATASETS_DIR or provide ../shared/datasets/ur10e)"
-        );
+    let Some(ur) = test_support::ur10e_dir() else {
         return;
     };
-    let ur = data.join("ur10e");
     let dir = tempfile::tempdir().unwrap();
     let me = |args: &[&std::ffi::OsStr]| {
         let out = Command::new(env!("CARGO_BIN_EXE_model-export"))

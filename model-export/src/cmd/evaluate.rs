@@ -210,7 +210,12 @@ pub fn run(a: EvaluateArgs) -> Result<()> {
         )),
         None => None,
     };
-    // The figures and the report: all or none.
+    // The figures and the report: all or none, the figures' folder made as `excite
+    // --out-dir` makes its own.
+    if let (Some(dir), false) = (&a.figures, figures.is_empty()) {
+        std::fs::create_dir_all(dir)
+            .with_context(|| format!("creating the figures folder {}", dir.display()))?;
+    }
     let mut files: Vec<(&Path, &[u8])> = figures
         .iter()
         .map(|(p, svg)| (p.as_path(), svg.as_bytes()))

@@ -10,7 +10,6 @@ use robot::dynamics::{
     mass_matrix, regressor, rnea, stack_regressors,
 };
 use robot::{JointMode, ModelTerms, Robot, axis_rotation};
-use std::path::PathBuf;
 
 /// A UR5e-like 6R arm in standard DH (test robot; masses and inertias invented).
 const UR_LIKE_STANDARD: &str = r#"
@@ -93,16 +92,8 @@ fn ur_like() -> Robot {
     Robot::from_dh_toml_str(UR_LIKE_STANDARD, "ur_like.toml").expect("test robot parses")
 }
 
-fn datasets_dir() -> Option<PathBuf> {
-    let dir = match std::env::var_os("DATASETS_DIR") {
-        Some(d) => PathBuf::from(d),
-        None => PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/datasets"),
-    };
-    dir.is_dir().then_some(dir)
-}
-
 fn ur10e() -> Option<Robot> {
-    let Some(dir) = datasets_dir() else {
+    let Some(dir) = test_support::datasets_dir() else {
         println!("skipped: no datasets directory (set DATASETS_DIR)");
         return None;
     };
@@ -115,11 +106,7 @@ fn ur10e() -> Option<Robot> {
 }
 
 fn planar_2r() -> Robot {
-    Robot::load(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../robots/planar_2r.toml"
-    ))
-    .expect("example robot loads")
+    Robot::load(test_support::robots_dir().join("planar_2r.toml")).expect("example robot loads")
 }
 
 fn random_state(rng: &mut ChaCha8Rng, n: usize) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
@@ -726,11 +713,7 @@ fn bad_toml_names_file_line_and_field() {
         4,
         "gravity",
     );
-    let good = std::fs::read_to_string(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../robots/planar_2r.toml"
-    ))
-    .unwrap();
+    let good = std::fs::read_to_string(test_support::robots_dir().join("planar_2r.toml")).unwrap();
     let line_of = |text: &str, needle: &str, nth: usize| {
         text.lines()
             .enumerate()
