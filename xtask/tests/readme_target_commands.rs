@@ -184,7 +184,7 @@ fn ur10e() -> Option<PathBuf> {
 /// compensation study on joint 6 only, the drive network only, 1 epoch (`JOINTS=6 NETS=drive
 /// EPOCHS=1`), the LSTM tables' script for 1 epoch (`EPOCHS=1`); `$D` is the logs' folder,
 /// `OUT_DIR` a temporary one. The compnet README's two other spellings of the study
-/// (`DATASET_DIR OUT_DIR`, `../shared/datasets/ur10e /tmp/study10`) are this line with
+/// (`DATASET_DIR OUT_DIR`, `../shared/datasets/ur10e /tmp/study13`) are this line with
 /// other placeholders.
 #[test]
 fn study_scripts_run_on_the_ur10e_logs() {
