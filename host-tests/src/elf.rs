@@ -87,7 +87,7 @@ pub fn size_report(elf: &Path, top: usize) -> Result<SizeReport> {
         }
         let name = s.name().unwrap_or("?").to_string();
         // `.ccmram_text` is the board's CCM SRAM (0x1000_0000), not its SRAM: the QEMU
-        // image keeps it in the last 32 KiB of its RAM, which the board does not have.
+        // image keeps it in the last 64 KiB of its RAM, which the board does not have.
         let in_ram = (RAM_START..RAM_END).contains(&s.address()) && name != CCM_CODE_SECTION;
         let has_bytes = !matches!(
             s.kind(),

@@ -9,6 +9,7 @@
 //! the registered workloads through a [`Visitor`].
 
 use crate::golden;
+use firmware::control::{JointState, LstmPredictor, PredictorInput, TorquePredictor};
 use firmware::math;
 
 /// A per-tick computation measured by the budget checks.
@@ -43,6 +44,7 @@ pub fn visit_all<V: Visitor>(v: &mut V) {
     v.visit::<LstmPaperInt16>();
     v.visit::<LstmPaperInt8>();
     v.visit::<LstmJointInt16>();
+    v.visit::<DriveStageInt16>();
     v.visit::<Dynamics6F32>();
     v.visit::<LstmLinearF32>();
     v.visit::<LstmLinearInt16>();
@@ -243,6 +245,69 @@ model_workload!(
     /// The per-joint network (3 -> 16 -> LSTM 16 -> 1), int16.
     LstmJointInt16, "lstm_joint_int16", bench_joint_int16
 );
+
+/// The drive compensator's per-joint stage as the drive runs it each tick
+/// (`firmware::control::LstmPredictor`, preset `drive`): the drive features of the
+/// reference, the residual measured over the previous tick, the 27-term linear stage and
+/// the 11 -> 16 -> LSTM 16 -> 1 network, int16 (`crate::fixtures::bench_drive_int16`), on
+/// golden joint states that change every tick.
+pub struct DriveStageInt16 {
+    // `Some`: the fixture's preset and sizes are checked at compile time
+    // (`firmware::check_model!`).
+    predictor: Option<
+        LstmPredictor<
+            &'static crate::fixtures::bench_drive_int16::Network,
+            1,
+            { crate::fixtures::bench_drive_int16::INPUTS },
+        >,
+    >,
+    inputs: [PredictorInput<1>; MODEL_INPUT_STEPS],
+    t: usize,
+    out: f32,
+}
+
+impl Workload for DriveStageInt16 {
+    const NAME: &'static str = "drive_stage_int16";
+    const MACS: u32 = crate::fixtures::bench_drive_int16::Network::MACS
+        + firmware::features::FRICTION_FEATURES as u32;
+
+    fn new() -> Self {
+        use crate::fixtures::bench_drive_int16 as m;
+        DriveStageInt16 {
+            predictor: LstmPredictor::new(&m::NETWORK, m::FEATURE_PRESET)
+                .map(|p| p.with_linear_stage(m::LINEAR_STAGE)),
+            inputs: core::array::from_fn(|t| {
+                let [q, qd, qdd, tau, model] = crate::golden::network::inputs::<5>(t);
+                PredictorInput {
+                    joints: [JointState {
+                        q_ref_rad: q,
+                        qd_ref_rad_s: qd,
+                        qdd_ref_rad_s2: qdd,
+                        tau_meas_nm: tau,
+                        ..Default::default()
+                    }],
+                    own_joint: 0,
+                    model_nm: [model],
+                }
+            }),
+            t: 0,
+            out: 0.0,
+        }
+    }
+
+    #[inline(never)]
+    #[cfg_attr(target_os = "none", unsafe(link_section = ".ccmram_text"))]
+    fn tick(&mut self) {
+        if let Some(p) = &mut self.predictor {
+            self.out = p.predict_nm(&self.inputs[self.t % MODEL_INPUT_STEPS])[0];
+        }
+        self.t += 1;
+    }
+
+    fn output(&self) -> f32 {
+        self.out
+    }
+}
 
 model_workload!(
     /// A network with a linear input layer (the PyTorch fixture, 5 -> 12 -> LSTM 16 -> 2), f32.

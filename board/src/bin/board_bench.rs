@@ -3,11 +3,18 @@
 //! SysTick as the periodic tick, DWT CYCCNT to measure each tick's cycles, a
 //! HardFault handler that parks the core. No drive peripherals are touched.
 //!
-//! Each tick runs every registered workload
+//! Each tick runs the selected registered workloads
 //! (`test_kit::bench::visit_all`, the same ones the QEMU cycle estimator traces),
 //! times each with DWT CYCCNT, and once per second reports per workload and for the
 //! whole tick the min / max / mean cycles over defmt. These are
 //! measured cycles (`cargo board-bench-run`), the hardware counterpart of `cargo run -p host-tests --bin budget`.
+//!
+//! Which workloads: the names in `BENCH_WORKLOADS` when the binary is built
+//! (comma-separated, e.g. `BENCH_WORKLOADS=lstm_paper_int16 cargo board-bench-run`), else
+//! every workload but the three paper-size networks. Each workload's model is placed as
+//! its own board image would place it (its arrays in SRAM where they fit the board's
+//! budget), so the paper networks do not fit beside the others: time them one image each.
+//! A workload left out is not linked.
 #![cfg_attr(target_os = "none", no_std)]
 #![cfg_attr(target_os = "none", no_main)]
 
@@ -40,6 +47,57 @@ mod app {
     const TICK_HZ: u32 = 100;
     /// Most workloads the statistics have room for.
     const MAX_WORKLOADS: usize = 16;
+    /// The workloads timed without `BENCH_WORKLOADS`: all but these.
+    const LEFT_OUT_BY_DEFAULT: [&str; 3] =
+        ["lstm_paper_f32", "lstm_paper_int16", "lstm_paper_int8"];
+
+    /// `a == b`, at compile time.
+    const fn same(a: &[u8], b: &[u8]) -> bool {
+        if a.len() != b.len() {
+            return false;
+        }
+        let mut k = 0;
+        while k < a.len() {
+            if a[k] != b[k] {
+                return false;
+            }
+            k += 1;
+        }
+        true
+    }
+
+    /// Whether workload `name` is timed (module docs), at compile time.
+    const fn selected(name: &str) -> bool {
+        let name = name.as_bytes();
+        match option_env!("BENCH_WORKLOADS") {
+            Some(list) => {
+                let list = list.as_bytes();
+                let (mut start, mut k) = (0, 0);
+                while k <= list.len() {
+                    if k == list.len() || list[k] == b',' {
+                        let (_, rest) = list.split_at(start);
+                        let (item, _) = rest.split_at(k - start);
+                        if same(item, name) {
+                            return true;
+                        }
+                        start = k + 1;
+                    }
+                    k += 1;
+                }
+                false
+            }
+            None => {
+                let mut k = 0;
+                while k < LEFT_OUT_BY_DEFAULT.len() {
+                    if same(LEFT_OUT_BY_DEFAULT[k].as_bytes(), name) {
+                        return false;
+                    }
+                    k += 1;
+                }
+                true
+            }
+        }
+    }
 
     #[entry]
     fn main() -> ! {
@@ -79,6 +137,9 @@ mod app {
 
     impl Visitor for Measure<'_> {
         fn visit<W: Workload>(&mut self) {
+            if !const { selected(W::NAME) } {
+                return;
+            }
             let mut w = W::new();
             let start = DWT::cycle_count();
             w.tick();
@@ -99,6 +160,9 @@ mod app {
 
     impl Visitor for Report<'_> {
         fn visit<W: Workload>(&mut self) {
+            if !const { selected(W::NAME) } {
+                return;
+            }
             if let Some(s) = self.stats.get_mut(self.next) {
                 let s = s.take();
                 firmware::fw_info!(
