@@ -142,13 +142,7 @@ pub fn dot4_f32(acc: [f32; 4], w: &[[f32; 4]], x: &[f32]) -> [f32; 4] {
 #[inline(always)]
 pub fn matvec4_i16(acc: &mut [[i32; 4]], bias: &[[i32; 4]], w: &[[[u32; 4]; 2]], x: &[[u32; 2]]) {
     let q = x.len();
-    if q == 0 {
-        for (a, b) in acc.iter_mut().zip(bias) {
-            *a = *b;
-        }
-        return;
-    }
-    let blocks = acc.len().min(bias.len()).min(w.len() / q);
+    let blocks = layer_blocks(acc, bias, w.len(), q);
     if blocks == 0 {
         return;
     }
@@ -173,6 +167,19 @@ pub fn matvec4_i16(acc: &mut [[i32; 4]], bias: &[[i32; 4]], w: &[[[u32; 4]; 2]],
     }
 }
 
+/// The 4-row blocks a layer kernel computes: `min(acc.len(), bias.len(), weights / q)`
+/// for `q > 0` quads per block; with `q == 0`, `acc[b] = bias[b]` here and 0 blocks.
+#[inline(always)]
+fn layer_blocks(acc: &mut [[i32; 4]], bias: &[[i32; 4]], weights: usize, q: usize) -> usize {
+    if q == 0 {
+        for (a, b) in acc.iter_mut().zip(bias) {
+            *a = *b;
+        }
+        return 0;
+    }
+    acc.len().min(bias.len()).min(weights / q)
+}
+
 /// A whole int8-weight layer: for every 4-row block `b`, `acc[b] = dot4_i8(bias[b],
 /// w[b * Q..(b + 1) * Q], x)` with `Q = x.len()` quads; `min(acc.len(), bias.len(),
 /// w.len() / Q)` blocks (with `Q == 0`, `acc[b] = bias[b]`). One call per layer keeps
@@ -182,13 +189,7 @@ pub fn matvec4_i16(acc: &mut [[i32; 4]], bias: &[[i32; 4]], w: &[[[u32; 4]; 2]],
 #[inline(always)]
 pub fn matvec4_i8(acc: &mut [[i32; 4]], bias: &[[i32; 4]], w: &[[u32; 4]], x: &[[u32; 2]]) {
     let q = x.len();
-    if q == 0 {
-        for (a, b) in acc.iter_mut().zip(bias) {
-            *a = *b;
-        }
-        return;
-    }
-    let blocks = acc.len().min(bias.len()).min(w.len() / q);
+    let blocks = layer_blocks(acc, bias, w.len(), q);
     if blocks == 0 {
         return;
     }
