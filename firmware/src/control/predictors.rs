@@ -193,10 +193,13 @@ impl<N: TorqueNetwork<I, J>, const J: usize, const I: usize> TorquePredictor<J>
         let tau_meas = input.joints.map(|s| s.tau_meas_nm);
         let mut x = [0.0f32; I];
         let mut linear_nm = [0.0f32; J];
+        // The previous tick's model torque and position (on the first tick, this one's),
+        // and the residual measured since: the torque measured over that tick minus the
+        // model torque predicted for it.
+        let (model_prev, q_prev) = self.previous.unwrap_or((input.model_nm, q_ref));
+        self.previous = Some((input.model_nm, q_ref));
+        let measured_residual: [f32; J] = core::array::from_fn(|j| tau_meas[j] - model_prev[j]);
         if self.preset == FeaturePreset::Drive {
-            // The residual measured since the last tick: the torque measured over it
-            // minus the model torque predicted for it (on the first tick, this one's).
-            let (model_prev, _) = self.previous.unwrap_or((input.model_nm, q_ref));
             for (j, (s, motion)) in input.joints.iter().zip(self.motion.iter_mut()).enumerate() {
                 let f = features::drive_inputs(
                     s.q_ref_rad,
@@ -204,7 +207,7 @@ impl<N: TorqueNetwork<I, J>, const J: usize, const I: usize> TorquePredictor<J>
                     s.qdd_ref_rad_s2,
                     input.model_nm[j],
                     motion.update(s.q_ref_rad, s.qd_ref_rad_s),
-                    tau_meas[j] - model_prev[j],
+                    measured_residual[j],
                 );
                 for (kind, v) in f.iter().enumerate().take(DRIVE_INPUTS_PER_JOINT) {
                     if let Some(slot) = x.get_mut(kind * J + j) {
@@ -213,7 +216,6 @@ impl<N: TorqueNetwork<I, J>, const J: usize, const I: usize> TorquePredictor<J>
                 }
                 linear_nm[j] = features::linear_correction_nm(&self.linear[j], &f);
             }
-            self.previous = Some((input.model_nm, q_ref));
         } else if self.preset == FeaturePreset::Feedforward {
             let qd_ref = input.joints.map(|s| s.qd_ref_rad_s);
             let features = input.model_nm.iter().chain(&q_ref).chain(&qd_ref);
@@ -221,17 +223,15 @@ impl<N: TorqueNetwork<I, J>, const J: usize, const I: usize> TorquePredictor<J>
                 *v = *f;
             }
         } else {
-            let (model_prev, q_prev) = self.previous.unwrap_or((input.model_nm, q_ref));
             let measured = if self.preset == FeaturePreset::PaperRelative {
-                core::array::from_fn(|j| tau_meas[j] - model_prev[j])
+                &measured_residual
             } else {
-                tau_meas
+                &tau_meas
             };
-            let features = model_prev.iter().chain(&measured).chain(&q_prev);
+            let features = model_prev.iter().chain(measured).chain(&q_prev);
             for (v, f) in x.iter_mut().zip(features) {
                 *v = *f;
             }
-            self.previous = Some((input.model_nm, q_ref));
         }
         let y = self.network.step(&mut self.state, &x);
         let mut out = [0.0f32; J];
