@@ -30,6 +30,9 @@ pub enum FirmwareBin {
     /// The QEMU mps2-an386 bench binary: runs every registered workload
     /// (`test_kit::bench`) for the cycle estimator (package `firmware/qemu`).
     QemuBench,
+    /// The board's bench binary: times a group of workloads with DWT CYCCNT on the
+    /// STM32G474 (package `board`, [`build_board_bench`]).
+    BoardBench,
 }
 
 impl FirmwareBin {
@@ -39,13 +42,14 @@ impl FirmwareBin {
             FirmwareBin::Board => "board",
             FirmwareBin::Qemu => "firmware-qemu",
             FirmwareBin::QemuBench => "firmware-qemu-bench",
+            FirmwareBin::BoardBench => "board-bench",
         }
     }
 
     /// Cargo arguments that select this binary's package and features.
     fn cargo_args(self) -> &'static [&'static str] {
         match self {
-            FirmwareBin::Board => &["-p", "board"],
+            FirmwareBin::Board | FirmwareBin::BoardBench => &["-p", "board"],
             FirmwareBin::Qemu | FirmwareBin::QemuBench => {
                 &["--manifest-path", "firmware/qemu/Cargo.toml"]
             }
@@ -84,13 +88,32 @@ pub fn build(bin: FirmwareBin) -> Result<PathBuf> {
 /// checked-in release profile (`CARGO_PROFILE_RELEASE_OPT_LEVEL`, in its own target
 /// directory `target/thumb-opt-LEVEL` so the default build stays cached).
 pub fn build_with(bin: FirmwareBin, opt_level: Option<&str>) -> Result<PathBuf> {
+    match opt_level {
+        None => cargo_build(bin, target_dir(), &[]),
+        Some(level) => cargo_build(
+            bin,
+            workspace_root()
+                .join("target")
+                .join(format!("thumb-opt-{level}")),
+            &[("CARGO_PROFILE_RELEASE_OPT_LEVEL", Some(level))],
+        ),
+    }
+}
+
+/// Builds the board's bench binary in release with the workloads named in `workloads`
+/// (`BENCH_WORKLOADS`, comma-separated), or its default group for `None`.
+pub fn build_board_bench(workloads: Option<&str>) -> Result<PathBuf> {
+    cargo_build(
+        FirmwareBin::BoardBench,
+        target_dir(),
+        &[("BENCH_WORKLOADS", workloads)],
+    )
+}
+
+/// `cargo build --release` of `bin` for the target into `dir`, with `env` set (a value)
+/// or removed (`None`); the ELF path.
+fn cargo_build(bin: FirmwareBin, dir: PathBuf, env: &[(&str, Option<&str>)]) -> Result<PathBuf> {
     require_target()?;
-    let dir = match opt_level {
-        None => target_dir(),
-        Some(level) => workspace_root()
-            .join("target")
-            .join(format!("thumb-opt-{level}")),
-    };
     let mut cmd = Command::new(env!("CARGO"));
     cmd.current_dir(workspace_root())
         .args([
@@ -104,8 +127,11 @@ pub fn build_with(bin: FirmwareBin, opt_level: Option<&str>) -> Result<PathBuf> 
         .args(bin.cargo_args())
         .arg("--target-dir")
         .arg(&dir);
-    if let Some(level) = opt_level {
-        cmd.env("CARGO_PROFILE_RELEASE_OPT_LEVEL", level);
+    for (name, value) in env {
+        match value {
+            Some(v) => cmd.env(name, v),
+            None => cmd.env_remove(name),
+        };
     }
     let status = cmd
         .status()
