@@ -43,12 +43,19 @@ fn synopsis(command: &str) -> String {
 }
 
 /// Runs an export line: it exits 0, or the do-no-harm gate refuses the tiny network,
-/// naming why, and nothing is written to `out`; returns whether it refused.
-fn export_or_gate_refusal(c: &ReadmeCommand, command: &str, dir: &Path, out: &Path) -> bool {
+/// naming why, and nothing is written to `out`; returns whether it refused. `env` is the
+/// same as for the other lines (both outcomes must run with it).
+fn export_or_gate_refusal(
+    c: &ReadmeCommand,
+    command: &str,
+    dir: &Path,
+    env: &[(&str, String)],
+    out: &Path,
+) -> bool {
     let o = std::process::Command::new("bash")
         .args(["-c", command])
         .current_dir(dir)
-        .env(me().0, me().1)
+        .envs(env.iter().map(|(k, v)| (*k, v.as_str())))
         .output()
         .unwrap();
     println!("$ {command}\n{}", String::from_utf8_lossy(&o.stdout));
@@ -191,7 +198,7 @@ fn sil_and_compnet_readme_lines_run_on_the_default_robot() {
             ("/abs/path/", &format!("{}/", d.display())),
         ],
     );
-    export_or_gate_refusal(export, &cmd, d, &d.join("my_model.rs"));
+    export_or_gate_refusal(export, &cmd, d, &env, &d.join("my_model.rs"));
 }
 
 /// The UR10e logs' folder, or `None` after the skip line.
@@ -260,7 +267,7 @@ fn own_robot_steps_run_on_the_ur10e_logs() {
                     c,
                     &[("host-tests/budgets.toml", &budgets.display().to_string())],
                 );
-                if export_or_gate_refusal(c, &cmd, d, &d.join("my_model.rs")) {
+                if export_or_gate_refusal(c, &cmd, d, &env, &d.join("my_model.rs")) {
                     // Step 8 still gets a model: the same export past the gate.
                     run_ok(c, &format!("{cmd} --allow-worse"), d, &env);
                 }
@@ -346,7 +353,7 @@ fn export_then_board_build_lines_run_with_the_target() {
     // gate refuses the 1-epoch network (naming why, writing nothing), the export runs
     // again past it so the build still runs.
     let (export, build) = cmd.split_once(" && ").expect("export && build");
-    if export_or_gate_refusal(&top[0], export, root, &d.join("my_model.rs")) {
+    if export_or_gate_refusal(&top[0], export, root, &env, &d.join("my_model.rs")) {
         run_ok(&top[0], &format!("{export} --allow-worse"), root, &env);
     }
     run_ok(&top[0], build, root, &env);
