@@ -9,6 +9,8 @@
 //! identification limits (1 rad/s, 3 rad/s² on every joint). Targets: 3 joints < 60 s,
 //! 6 joints < 5 min.
 //!
+//! `cargo test` runs it as a smoke test: one restart of 40 evaluations, 3 random draws.
+//!
 //! Robot: `robots/default.toml` if present, else the UR10e URDF under
 //! `$DATASETS_DIR` (default `../shared/datasets`), with 8 rad/s² acceleration limits.
 
@@ -17,6 +19,7 @@ use excitation::robot_model::{LimitOverrides, RobotObservation, joint_limits};
 use excitation::{BaselineScaling, ExcitationSettings, FourierFamily, design, random_baseline};
 use robot::Robot;
 use std::path::PathBuf;
+use test_support::bench::BenchRun;
 
 fn robot() -> Option<(Robot, LimitOverrides)> {
     let manifest = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
@@ -36,6 +39,7 @@ fn robot() -> Option<(Robot, LimitOverrides)> {
 }
 
 fn main() {
+    let run = BenchRun::from_args();
     let Some((robot, overrides)) = robot() else {
         println!(
             "skipped: no robot description (robots/default.toml or $DATASETS_DIR/ur10e/ur10e.urdf)"
@@ -75,7 +79,12 @@ fn main() {
         let model = RobotObservation::new(r.clone()).expect("base parameters");
         let limits = joint_limits(model.robot(), o).expect("limits");
         let rest = vec![0.0; limits.len()];
-        let settings = ExcitationSettings::default();
+        let defaults = ExcitationSettings::default();
+        let settings = ExcitationSettings {
+            restarts: run.size(defaults.restarts, 1),
+            evaluations_per_restart: run.size(defaults.evaluations_per_restart, 40),
+            ..defaults
+        };
         let family = FourierFamily::new(
             settings.period_s,
             settings.harmonics,
@@ -90,7 +99,7 @@ fn main() {
             let random = random_baseline(
                 &model,
                 &family,
-                DEFAULT_BASELINE_COUNT,
+                run.size(DEFAULT_BASELINE_COUNT, 3),
                 settings.seed,
                 settings.rate_hz,
                 scaling,

@@ -3,6 +3,7 @@
 //!
 //! Run: `cargo bench -p model-export --bench identify`. Prints wall-clock times of
 //! the stages (best of 3 runs) on this machine; target: whole identification < 1 s.
+//! `cargo test` runs it as a smoke test on 5 000 samples.
 
 use identify::identified::{ModelSelection, RobotBaseModel, load_robot};
 use identify::pipeline::{self, LinearModel};
@@ -14,12 +15,12 @@ use rand_distr::{Distribution, Normal};
 use robot::RobotSource;
 use std::path::PathBuf;
 use std::time::Instant;
+use test_support::bench::BenchRun;
 
 const ROBOT: &str = concat!(
     env!("CARGO_MANIFEST_DIR"),
     "/../crates/identify/tests/data/ur_type_6r.toml"
 );
-const SAMPLES: usize = 100_000;
 
 fn simulate(m: &RobotBaseModel, n: usize) -> Samples {
     let mut rng = ChaCha8Rng::seed_from_u64(42);
@@ -75,6 +76,7 @@ fn best<T>(mut f: impl FnMut() -> T) -> (f64, T) {
 }
 
 fn main() {
+    let samples = BenchRun::from_args().size(100_000, 5_000);
     let source = RobotSource::File(ROBOT.into());
     let m = RobotBaseModel::new(
         load_robot(&source, &ModelSelection::default())
@@ -83,7 +85,7 @@ fn main() {
     )
     .unwrap();
     let names = m.parameter_names();
-    let logs = [simulate(&m, SAMPLES)];
+    let logs = [simulate(&m, samples)];
     let s = &logs[0];
     let j = m.modelled_log_joints();
 
@@ -106,9 +108,9 @@ fn main() {
     let (t_wls, id) = best(|| solve(&mut ne.clone(), &names, &wls).unwrap());
 
     println!(
-        "identification benchmark: UR-type 6R, {} base parameters, {SAMPLES} samples ({} equations)",
+        "identification benchmark: UR-type 6R, {} base parameters, {samples} samples ({} equations)",
         names.len(),
-        6 * SAMPLES
+        6 * samples
     );
     println!("wall-clock, best of 3, this machine");
     println!("{:<58} {:>10}", "stage", "time [s]");

@@ -5,9 +5,11 @@
 //! back when `python3 -c 'import torch'` works; otherwise its columns say so).
 //!
 //! `cargo bench -p model-export --bench lstm_epoch [-- --burn-in 50 --epochs 3]`
+//! (`cargo test` runs it as a smoke test: 2 000 steps, H = 16, one epoch after the warm-up).
 use compnet::data::Sequence;
 use compnet::train::{TrainConfig, new_model, time_epochs};
 use std::process::Command;
+use test_support::bench::BenchRun;
 
 fn arg(name: &str, default: usize) -> usize {
     let args: Vec<String> = std::env::args().collect();
@@ -47,9 +49,10 @@ fn torch(
 }
 
 fn main() -> anyhow::Result<()> {
-    let steps = arg("--steps", 60_000);
-    let epochs = arg("--epochs", 3);
-    let hidden = arg("--hidden", 64);
+    let run = BenchRun::from_args();
+    let steps = arg("--steps", run.size(60_000, 2_000));
+    let epochs = arg("--epochs", run.size(3, 1));
+    let hidden = arg("--hidden", run.size(64, 16));
     let seq = Sequence {
         inputs: (0..steps)
             .map(|t| {

@@ -1,10 +1,13 @@
 //! Benchmark: simulate 60 s of the default 6-DoF arm at a 1 kHz internal rate (the
-//! simulator's target: under 2 s). Prints a table; run with `cargo bench -p model-export --bench simulate`.
+//! simulator's target: under 2 s). Prints a table; run with `cargo bench -p model-export --bench simulate`
+//! (`cargo test` runs it as a smoke test: one 10 s period, once).
 use excitation::{ExcitationTrajectory, JointFourier};
 use plant_sim::{self, CommandedTrajectory, PlantEffects, PlantParameters, SimulationConfig};
 use std::time::Instant;
+use test_support::bench::BenchRun;
 
 fn main() {
+    let run = BenchRun::from_args();
     let robot = robot::Robot::load(concat!(
         env!("CARGO_MANIFEST_DIR"),
         "/../robots/default.toml"
@@ -25,7 +28,11 @@ fn main() {
             })
             .collect(),
     };
-    let traj = CommandedTrajectory::Fourier { series, periods: 6 };
+    let traj = CommandedTrajectory::Fourier {
+        series,
+        periods: run.size(6, 1),
+    };
+    let repeats = run.size(5, 1);
     println!(
         "{:<28} {:>10} {:>12} {:>12}",
         "case", "sim [s]", "wall [s]", "x realtime"
@@ -38,18 +45,19 @@ fn main() {
         cfg.effects = effects;
         let mut best = f64::INFINITY;
         let mut rows = 0;
-        for _ in 0..5 {
+        for _ in 0..repeats {
             let t0 = Instant::now();
             let log = plant_sim::simulate(&arm, &plant, &traj, &cfg).expect("simulate");
             best = best.min(t0.elapsed().as_secs_f64());
             rows = log.rows.len();
         }
         println!(
-            "{:<28} {:>10.1} {:>12.4} {:>12.0}   ({rows} log rows, 60 001 internal steps, best of 5)",
+            "{:<28} {:>10.1} {:>12.4} {:>12.0}   ({rows} log rows, {} internal steps, best of {repeats})",
             name,
             traj.duration_s(),
             best,
-            traj.duration_s() / best
+            traj.duration_s() / best,
+            (traj.duration_s() * cfg.internal_rate_hz).round() as u64 + 1
         );
     }
 }

@@ -1,9 +1,11 @@
 //! Benchmark: URDF reading time against size (a chain of N revolute joints, and a binary
 //! tree of fixed joints on one moving joint). Reading is linear: the time per joint stays
 //! flat as N grows. Prints a table (wall-clock, best of 3); run with
-//! `cargo bench -p model-export --bench urdf`.
+//! `cargo bench -p model-export --bench urdf` (`cargo test` runs it as a smoke test on
+//! small sizes).
 use robot::Robot;
 use std::time::Instant;
+use test_support::bench::BenchRun;
 
 fn chain(n: usize) -> String {
     let mut s = String::from("<robot name=\"long\">\n  <link name=\"l0\"/>\n");
@@ -51,9 +53,10 @@ fn best_of_3(text: &str) -> f64 {
 }
 
 fn main() {
+    let run = BenchRun::from_args();
     println!("| shape | joints | bytes | read [ms] | per joint [us] |");
     println!("|---|---:|---:|---:|---:|");
-    for n in [500, 1000, 2000, 4000, 8000] {
+    for n in run.size(vec![500, 1000, 2000, 4000, 8000], vec![50, 100]) {
         let t = chain(n);
         let s = best_of_3(&t);
         println!(
@@ -63,7 +66,7 @@ fn main() {
             s * 1e6 / n as f64
         );
     }
-    for n in [1023, 4095] {
+    for n in run.size(vec![1023, 4095], vec![63]) {
         let t = fixed_tree(n);
         let s = best_of_3(&t);
         println!(

@@ -31,8 +31,9 @@ struct Entry {
     /// The command, whitespace folded, as the rule extracts it.
     command: String,
     /// `PATH::TEST` (a `#[test]` function in that file); `ci`: `.ci/run` itself, a line
-    /// of it (or the start of one), or a `cargo test` that selects tests `.ci/run`'s
-    /// `cargo test --workspace` runs; or `not run` (with the reason in `note`).
+    /// of it (or the start of one), a `cargo test` that selects tests `.ci/run`'s
+    /// `cargo test --workspace` runs, or a `cargo bench` of a bench it runs as a smoke
+    /// test; or `not run` (with the reason in `note`).
     run_by: String,
     /// How the runner differs from the command as written (tiny sizes, a placeholder
     /// filled, the alias's expansion), when it does.
@@ -86,6 +87,44 @@ fn ci_test_problem(root: &Path, command: &str) -> Option<String> {
     }
 }
 
+/// Why a `cargo bench ... -p PACKAGE --bench NAME` command (after any `VAR=value`
+/// settings) is not run by `cargo test --workspace`, or `None` when it is: the package's
+/// manifest gives bench `NAME` `test = true`, so `cargo test` runs it as a smoke test
+/// (tiny sizes, `test_support::bench`).
+fn ci_bench_problem(root: &Path, command: &str) -> Option<String> {
+    let words: Vec<&str> = command
+        .split_whitespace()
+        .skip_while(|w| w.contains('=') && !w.starts_with('-'))
+        .collect();
+    let after = |flag: &str| {
+        words
+            .iter()
+            .position(|w| *w == flag)
+            .and_then(|k| words.get(k + 1))
+    };
+    let (Some(package), Some(bench)) = (after("-p"), after("--bench")) else {
+        return Some("a `cargo bench` without `-p PACKAGE --bench NAME`".into());
+    };
+    let Some(dir) = package_dir(root, package) else {
+        return Some(format!("no workspace package `{package}`"));
+    };
+    let manifest: toml::Value = std::fs::read_to_string(dir.join("Cargo.toml"))
+        .ok()
+        .and_then(|t| toml::from_str(&t).ok())?;
+    let smoke_tested = manifest
+        .get("bench")
+        .and_then(|b| b.as_array())
+        .into_iter()
+        .flatten()
+        .any(|b| {
+            b.get("name").and_then(|n| n.as_str()) == Some(bench)
+                && b.get("test").and_then(|t| t.as_bool()) == Some(true)
+        });
+    (!smoke_tested).then(|| {
+        format!("package `{package}` has no bench `{bench}` with `test = true` (cargo test would not run it)")
+    })
+}
+
 /// Why `run_by` does not name a runner, or `None` when it does.
 fn runner_problem(root: &Path, entry: &Entry, ci_lines: &BTreeSet<String>) -> Option<String> {
     if entry.run_by == NOT_RUN {
@@ -96,7 +135,8 @@ fn runner_problem(root: &Path, entry: &Entry, ci_lines: &BTreeSet<String>) -> Op
     }
     if entry.run_by == "ci" {
         // `.ci/run` itself; a line of it, or the start of one (CI runs it with more flags);
-        // a `cargo test` of tests `.ci/run`'s `cargo test --workspace` runs.
+        // a `cargo test` of tests `.ci/run`'s `cargo test --workspace` runs; a `cargo bench`
+        // of a bench that it runs as a smoke test.
         if entry.command == "bash .ci/run"
             || ci_lines
                 .iter()
@@ -106,6 +146,9 @@ fn runner_problem(root: &Path, entry: &Entry, ci_lines: &BTreeSet<String>) -> Op
         }
         if entry.command.starts_with("cargo test ") && ci_lines.contains("cargo test --workspace") {
             return ci_test_problem(root, &entry.command);
+        }
+        if entry.command.contains("cargo bench ") && ci_lines.contains("cargo test --workspace") {
+            return ci_bench_problem(root, &entry.command);
         }
         return Some(
             "`ci`, but it is neither .ci/run, a line of it, nor a `cargo test` of the workspace"
@@ -132,6 +175,35 @@ fn runner_problem(root: &Path, entry: &Entry, ci_lines: &BTreeSet<String>) -> Op
         .iter()
         .any(|l| l.trim() == "#[test]");
     (!is_test).then(|| format!("{file}: `{test}` is not a #[test]"))
+}
+
+#[test]
+fn a_bench_counts_as_run_by_ci_only_when_cargo_test_runs_it() {
+    let root = test_support::workspace_root();
+    for ok in [
+        "cargo bench -p model-export --bench urdf",
+        "cargo bench -p model-export --bench urdf --profile host",
+        "CARGO_PROFILE_BENCH_LTO=false cargo bench -p model-export --bench excite",
+    ] {
+        assert_eq!(ci_bench_problem(root, ok), None, "{ok}");
+    }
+    for (bad, why) in [
+        (
+            "cargo bench -p model-export --bench nothing",
+            "no bench `nothing`",
+        ),
+        (
+            "cargo bench -p no-such-crate --bench urdf",
+            "no workspace package",
+        ),
+        (
+            "cargo bench -p model-export",
+            "without `-p PACKAGE --bench NAME`",
+        ),
+    ] {
+        let problem = ci_bench_problem(root, bad).unwrap_or_default();
+        assert!(problem.contains(why), "{bad}: {problem}");
+    }
 }
 
 #[test]

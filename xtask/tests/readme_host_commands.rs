@@ -1,5 +1,6 @@
-//! The READMEs' host cargo commands that run the model-export binary or its examples
-//! (`cargo run ... -p model-export ...`), taken from the READMEs and run with `bash` from
+//! The READMEs' host commands that run the model-export binary or its examples
+//! (`cargo run ... -p model-export ...`), the PyTorch reference epoch and a build-time
+//! measurement, taken from the READMEs and run with `bash` from
 //! the workspace root in the dev profile that `cargo test` has already built: `--release`
 //! and `--profile host` are dropped (they only choose the build profile, and a cold
 //! release build of model-export takes minutes), `[optional]` brackets dropped with their
@@ -51,9 +52,9 @@ fn cargo_run_model_export_lines_run() {
     run_ok(&c, &dev_profile(&c), root, &[]);
 }
 
-/// The model-export examples (robot and compnet READMEs): base parameters of the default
-/// robot (`ROBOT` = `robots/default.toml`), the SGEMM shapes. (The excitation probe's
-/// `floors` takes 132 s in the dev profile: not run here, see the registry.)
+/// The model-export examples (robot, compnet and excitation READMEs): base parameters of
+/// the default robot (`ROBOT` = `robots/default.toml`), the SGEMM shapes, the excitation
+/// probe's `floors` (tiny: 1 restart of 60 evaluations instead of 4 of 6 000).
 #[test]
 fn model_export_examples_run() {
     let root = workspace_root();
@@ -72,4 +73,56 @@ fn model_export_examples_run() {
         "cargo run --release -p model-export --example gemm_shapes",
     );
     run_ok(&c, &dev_profile(&c), root, &[]);
+    let c = the(
+        "crates/excitation/README.md",
+        "cargo run --profile host -p model-export --example excite_probe -- floors",
+    );
+    run_ok(&c, &format!("{} 1 60", dev_profile(&c)), root, &[]);
+}
+
+/// The compnet README's PyTorch reference epoch (the `lstm_epoch` benchmark's other
+/// half), tiny (2 000 steps, H = 16, 1 epoch), where `python3` imports torch; otherwise
+/// one skip line.
+#[test]
+fn bench_torch_script_runs_where_torch_is_installed() {
+    let has_torch = std::process::Command::new("python3")
+        .args(["-c", "import torch"])
+        .output()
+        .is_ok_and(|o| o.status.success());
+    if !has_torch {
+        println!("skipped: python3 cannot import torch");
+        return;
+    }
+    let c = the(
+        "crates/compnet/README.md",
+        "python3 scripts/bench_torch.py --burn-in 0 --threads 1",
+    );
+    run_ok(
+        &c,
+        &format!("{} --steps 2000 --hidden 16 --epochs 1", c.command),
+        workspace_root(),
+        &[],
+    );
+}
+
+/// The compnet README's build-time measurement of the ONNX reader's crates, in a
+/// temporary `CARGO_TARGET_DIR` (the from-scratch build the line measures, leaving the
+/// workspace's own build alone): it builds and writes cargo's timing report.
+#[test]
+fn onnx_protobuf_build_timing_line_runs() {
+    let c = the(
+        "crates/compnet/README.md",
+        "cargo clean -p onnx-protobuf -p protobuf -p protobuf-support && cargo build -p onnx-protobuf --timings",
+    );
+    let target = tempfile::tempdir().unwrap();
+    let env = [("CARGO_TARGET_DIR", target.path().display().to_string())];
+    run_ok(&c, &c.command, workspace_root(), &env);
+    assert!(
+        target
+            .path()
+            .join("cargo-timings/cargo-timing.html")
+            .is_file(),
+        "no timing report in {}",
+        target.path().display()
+    );
 }

@@ -7,6 +7,7 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 
+pub mod bench;
 pub mod readme;
 
 /// The workspace root (the folder holding the root `Cargo.toml`).
