@@ -95,7 +95,7 @@ pub fn parse_model_with(bytes: &[u8], input_activation: Option<&str>) -> Result<
         };
         bail!(
             "tensors this network layout does not use{layers}: {}; the layout is input -> \
-             one LSTM layer -> output (model-export/README.md, PyTorch interchange)",
+             one LSTM layer -> output (crates/compnet/README.md, PyTorch interchange)",
             unused.join(", ")
         );
     }

@@ -1,7 +1,7 @@
 //! The true plant: a robot arm whose behaviour includes what the identification model
 //! (rigid body + viscous + Coulomb friction) misses, logged like a real controller logs.
 //!
-//! Approach (justified in model-export/README.md, "Plant simulator"): the arm follows the
+//! Approach (justified in crates/plant-sim/README.md, "Plant simulator"): the arm follows the
 //! commanded trajectory (a stiff position loop), and the motor current is the inverse
 //! dynamics of the true plant along it, stepped at an internal rate (default 1 kHz) that
 //! integrates the memory effects (LuGre bristles, thermal node), then sampled, corrupted
@@ -289,7 +289,7 @@ pub fn simulate<R: RigidBodyModel + ?Sized>(
 }
 
 /// The built-in default robot's rigid body (UR5e published DH, masses, centres of mass
-/// and inertia tensors) carrying the default 2.5 kg tool; see model-export/README.md.
+/// and inertia tensors) carrying the default 2.5 kg tool; see crates/robot/README.md, "The default robot".
 pub fn default_arm() -> DhArm {
     use std::f64::consts::FRAC_PI_2;
     let d = [0.1625, 0.0, 0.0, 0.1333, 0.0997, 0.0996];

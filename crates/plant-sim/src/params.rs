@@ -1,7 +1,7 @@
 //! Parameters of the true plant beyond the rigid body: per-joint drive (gear, motor,
 //! rotor, friction, thermal node, transmission ripple) and the current-sensing chain.
 //!
-//! Defaults are the built-in default robot (a UR5e-class arm); see model-export/README.md
+//! Defaults are the built-in default robot (a UR5e-class arm); see crates/robot/README.md
 //! ("The default robot") for where each number comes from.
 use serde::{Deserialize, Serialize};
 

@@ -678,7 +678,7 @@ impl Report {
              τ(t+1) - τ(t) and adds the measured τ(t) back (`train --paper-output increment`), \
              which is what beats persistence, but as a drive's feedforward it closes a \
              unit-gain loop on the applied torque, so the exporter refuses it \
-             (model-export/README.md).\n"
+             (crates/compnet/README.md).\n"
         );
         let _ = writeln!(
             md,
