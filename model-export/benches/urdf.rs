@@ -7,18 +7,9 @@ use robot::Robot;
 use std::time::Instant;
 use test_support::bench::BenchRun;
 
-fn chain(n: usize) -> String {
-    let mut s = String::from("<robot name=\"long\">\n  <link name=\"l0\"/>\n");
-    for i in 0..n {
-        s.push_str(&format!(
-            "  <joint name=\"j{i}\" type=\"revolute\">\n    <parent link=\"l{i}\"/>\n    <child link=\"l{}\"/>\n    <origin xyz=\"0 0 0.1\" rpy=\"0 0 0\"/>\n    <axis xyz=\"0 0 1\"/>\n    <limit lower=\"-1\" upper=\"1\" effort=\"10\" velocity=\"2\"/>\n  </joint>\n  <link name=\"l{}\">\n    <inertial>\n      <origin xyz=\"0.01 0 0\" rpy=\"0 0 0\"/>\n      <mass value=\"1.0\"/>\n      <inertia ixx=\"0.01\" ixy=\"0\" ixz=\"0\" iyy=\"0.01\" iyz=\"0\" izz=\"0.01\"/>\n    </inertial>\n  </link>\n",
-            i + 1,
-            i + 1
-        ));
-    }
-    s.push_str("</robot>\n");
-    s
-}
+// The reading tests' long chain (one source).
+#[path = "../../crates/robot/tests/support/urdf_chain.rs"]
+mod urdf_chain;
 
 fn fixed_tree(n: usize) -> String {
     let link = |name: &str| {
@@ -57,7 +48,7 @@ fn main() {
     println!("| shape | joints | bytes | read [ms] | per joint [us] |");
     println!("|---|---:|---:|---:|---:|");
     for n in run.size(vec![500, 1000, 2000, 4000, 8000], vec![50, 100]) {
-        let t = chain(n);
+        let t = urdf_chain::chain_urdf(n);
         let s = best_of_3(&t);
         println!(
             "| revolute chain | {n} | {} | {:.1} | {:.2} |",

@@ -7,6 +7,10 @@ use robot::dynamics::rnea;
 use robot::{ChainSelection, MAX_URDF_JOINTS, ModelTerms, Robot};
 use std::path::{Path, PathBuf};
 
+#[path = "support/urdf_chain.rs"]
+mod urdf_chain;
+use urdf_chain::chain_urdf;
+
 fn fixture_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/pinocchio")
 }
@@ -262,20 +266,6 @@ fn a_base_link_below_the_root_sees_gravity_in_its_own_frame() {
 
 fn full_gravity() -> nalgebra::Vector3<f64> {
     nalgebra::Vector3::new(0.0, 0.0, -9.81)
-}
-
-/// A chain of `n` revolute joints `j0..`, links `l0..ln`.
-fn chain_urdf(n: usize) -> String {
-    let mut s = String::from("<robot name=\"long\">\n  <link name=\"l0\"/>\n");
-    for i in 0..n {
-        s.push_str(&format!(
-            "  <joint name=\"j{i}\" type=\"revolute\">\n    <parent link=\"l{i}\"/>\n    <child link=\"l{}\"/>\n    <origin xyz=\"0 0 0.1\" rpy=\"0 0 0\"/>\n    <axis xyz=\"0 0 1\"/>\n    <limit lower=\"-1\" upper=\"1\" effort=\"10\" velocity=\"2\"/>\n  </joint>\n  <link name=\"l{}\">\n    <inertial>\n      <origin xyz=\"0.01 0 0\" rpy=\"0 0 0\"/>\n      <mass value=\"1.0\"/>\n      <inertia ixx=\"0.01\" ixy=\"0\" ixz=\"0\" iyy=\"0.01\" iyz=\"0\" izz=\"0.01\"/>\n    </inertial>\n  </link>\n",
-            i + 1,
-            i + 1
-        ));
-    }
-    s.push_str("</robot>\n");
-    s
 }
 
 fn joint(name: &str, kind: &str, parent: &str, child: &str) -> String {
