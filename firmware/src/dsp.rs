@@ -218,85 +218,53 @@ pub fn matvec4_i8(acc: &mut [[i32; 4]], bias: &[[i32; 4]], w: &[[u32; 4]], x: &[
 /// w[b * N..(b + 1) * N], x)` with `N = x.len()` columns (each row summed left to
 /// right from +0.0, separate multiply and add: the bits of [`dot4_f32`]);
 /// `min(out.len(), w.len() / N)` blocks (all of `out` is zero when `N == 0`).
-/// On the Cortex-M4F: 8 columns per iteration (VLDM of 8 inputs, two VLDM of 16
-/// weights, VMUL + VADD), the FPU registers saved once per layer.
+/// On the Cortex-M4F: two blocks (8 rows) at a time, 8 columns per iteration (VLDM
+/// of 8 inputs, four VLDM of 16 weights, in-place VMUL + VADD), the FPU registers
+/// saved once per layer.
 #[inline(always)]
 pub fn matvec4_f32(out: &mut [[f32; 4]], w: &[[f32; 4]], x: &[f32]) {
-    let n = x.len();
-    if n == 0 {
-        out.fill([0.0; 4]);
-        return;
-    }
-    let blocks = out.len().min(w.len() / n);
-    if blocks == 0 {
-        return;
-    }
-    #[cfg(fw_dsp_asm)]
-    {
-        // SAFETY: blocks > 0 blocks of n > 0 columns of `w`, n values of `x`, blocks
-        // outputs, all in bounds by the computation above; no second part.
-        unsafe {
-            asm::matvec4_f32(
-                out.as_mut_ptr(),
-                w.as_ptr(),
-                blocks,
-                w.as_ptr(),
-                0,
-                x.as_ptr(),
-                n,
-            )
-        }
-    }
-    #[cfg(not(fw_dsp_asm))]
-    {
-        portable::matvec4_f32(&mut out[..blocks], w, x)
-    }
+    matvec4_f32_parts(out, [w, &[], &[]], x);
 }
 
-/// [`matvec4_f32`] over a layer whose blocks are stored in two parts (`head`: the first
-/// blocks, `tail`: the rest, e.g. one in SRAM and one in flash): `out[b]` from block
-/// `b` of `head` and then of `tail`, the same bits as one layer; `min(out.len(),
-/// head.len() / N + tail.len() / N)` blocks. One assembly block for both parts (the
-/// switch from one to the other costs a few cycles per layer, not per block).
+/// [`matvec4_f32`] over a layer whose blocks are stored in up to three parts (e.g.
+/// the first in SRAM, the next in CCM SRAM, the rest in flash): `out[b]` from the
+/// blocks of `parts[0]`, then of `parts[1]`, then of `parts[2]`, the same bits as one
+/// layer; each part contributes `len / N` blocks, as many as `out` still takes. One
+/// assembly block for all parts (switching parts costs a few cycles per layer, not
+/// per block); a part's blocks run two at a time, an odd last one alone.
 #[inline(always)]
-pub fn matvec4_f32_parts(out: &mut [[f32; 4]], head: &[[f32; 4]], tail: &[[f32; 4]], x: &[f32]) {
+pub fn matvec4_f32_parts(out: &mut [[f32; 4]], parts: [&[[f32; 4]]; 3], x: &[f32]) {
     let n = x.len();
     if n == 0 {
         out.fill([0.0; 4]);
         return;
     }
-    let head_blocks = out.len().min(head.len() / n);
-    let tail_blocks = (out.len() - head_blocks).min(tail.len() / n);
+    let mut left = out.len();
+    let blocks = parts.map(|p| {
+        let b = left.min(p.len() / n);
+        left -= b;
+        b
+    });
     #[cfg(fw_dsp_asm)]
     {
-        let (first, first_blocks, second, second_blocks) = if head_blocks > 0 {
-            (head, head_blocks, tail, tail_blocks)
-        } else {
-            (tail, tail_blocks, head, 0)
-        };
-        if first_blocks == 0 {
+        let table: [[usize; 2]; 3] =
+            core::array::from_fn(|i| [parts[i].as_ptr() as usize, blocks[i]]);
+        if blocks == [0; 3] {
             return;
         }
-        // SAFETY: first_blocks > 0 blocks of n > 0 columns of `first`, second_blocks
-        // of `second`, n values of `x`, first_blocks + second_blocks <= out.len()
-        // outputs, all in bounds by the computation above.
-        unsafe {
-            asm::matvec4_f32(
-                out.as_mut_ptr(),
-                first.as_ptr(),
-                first_blocks,
-                second.as_ptr(),
-                second_blocks,
-                x.as_ptr(),
-                n,
-            )
-        }
+        // SAFETY: 3 table entries, each with blocks[i] blocks of n > 0 columns of
+        // parts[i] (in bounds by the computation above), n values of `x`, and the
+        // sum of the blocks <= out.len() outputs.
+        unsafe { asm::matvec4_f32(out.as_mut_ptr(), table.as_ptr(), 3, x.as_ptr(), n) }
     }
     #[cfg(not(fw_dsp_asm))]
     {
-        let (out_head, out_tail) = out.split_at_mut(head_blocks);
-        portable::matvec4_f32(out_head, head, x);
-        portable::matvec4_f32(&mut out_tail[..tail_blocks], tail, x);
+        let mut rest = &mut out[..];
+        for (p, b) in parts.iter().zip(blocks) {
+            let (now, later) = rest.split_at_mut(b);
+            portable::matvec4_f32(now, p, x);
+            rest = later;
+        }
     }
 }
 
@@ -828,160 +796,271 @@ mod asm {
         }
     }
 
-    /// Four columns of the f32 layer kernel: inputs s4+k, weights s12-s27. Per
-    /// column the four VMUL come before the four VADD, so that no VADD reads the
-    /// result of the instruction right before it (the FPU's one-cycle result stall);
-    /// each accumulator still adds its products in column order.
-    macro_rules! cols4_f32 {
-        ($x0:literal, $x1:literal, $x2:literal, $x3:literal) => {
+    /// Sixteen products of the f32 layer kernel, in place: weights s16-s31 (4 columns
+    /// of one 4-row block, `s16 + 4 j + r` = column `j`, row `r`), inputs `$x0..$x3`,
+    /// accumulators `$a0..$a3` (rows 0-3). Each VMUL overwrites its weight with the
+    /// product; each VADD comes two instructions after the VMUL it reads (the FPU's
+    /// one-cycle result stall falls on the instruction right after a VMUL), and each
+    /// accumulator adds its products in column order.
+    macro_rules! products16_f32 {
+        ($x0:literal, $x1:literal, $x2:literal, $x3:literal, $a0:literal, $a1:literal, $a2:literal, $a3:literal) => {
             concat!(
-                "vmul.f32 s28, s12, ",
+                "vmul.f32 s16, s16, ",
                 $x0,
                 "\n",
-                "vmul.f32 s29, s13, ",
+                "vmul.f32 s17, s17, ",
                 $x0,
                 "\n",
-                "vmul.f32 s30, s14, ",
+                "vadd.f32 ",
+                $a0,
+                ", ",
+                $a0,
+                ", s16\n",
+                "vmul.f32 s18, s18, ",
                 $x0,
                 "\n",
-                "vmul.f32 s31, s15, ",
+                "vadd.f32 ",
+                $a1,
+                ", ",
+                $a1,
+                ", s17\n",
+                "vmul.f32 s19, s19, ",
                 $x0,
                 "\n",
-                "vadd.f32 s0, s0, s28\n",
-                "vadd.f32 s1, s1, s29\n",
-                "vadd.f32 s2, s2, s30\n",
-                "vadd.f32 s3, s3, s31\n",
-                "vmul.f32 s28, s16, ",
+                "vadd.f32 ",
+                $a2,
+                ", ",
+                $a2,
+                ", s18\n",
+                "vmul.f32 s20, s20, ",
                 $x1,
                 "\n",
-                "vmul.f32 s29, s17, ",
+                "vadd.f32 ",
+                $a3,
+                ", ",
+                $a3,
+                ", s19\n",
+                "vmul.f32 s21, s21, ",
                 $x1,
                 "\n",
-                "vmul.f32 s30, s18, ",
+                "vadd.f32 ",
+                $a0,
+                ", ",
+                $a0,
+                ", s20\n",
+                "vmul.f32 s22, s22, ",
                 $x1,
                 "\n",
-                "vmul.f32 s31, s19, ",
+                "vadd.f32 ",
+                $a1,
+                ", ",
+                $a1,
+                ", s21\n",
+                "vmul.f32 s23, s23, ",
                 $x1,
                 "\n",
-                "vadd.f32 s0, s0, s28\n",
-                "vadd.f32 s1, s1, s29\n",
-                "vadd.f32 s2, s2, s30\n",
-                "vadd.f32 s3, s3, s31\n",
-                "vmul.f32 s28, s20, ",
+                "vadd.f32 ",
+                $a2,
+                ", ",
+                $a2,
+                ", s22\n",
+                "vmul.f32 s24, s24, ",
                 $x2,
                 "\n",
-                "vmul.f32 s29, s21, ",
+                "vadd.f32 ",
+                $a3,
+                ", ",
+                $a3,
+                ", s23\n",
+                "vmul.f32 s25, s25, ",
                 $x2,
                 "\n",
-                "vmul.f32 s30, s22, ",
+                "vadd.f32 ",
+                $a0,
+                ", ",
+                $a0,
+                ", s24\n",
+                "vmul.f32 s26, s26, ",
                 $x2,
                 "\n",
-                "vmul.f32 s31, s23, ",
+                "vadd.f32 ",
+                $a1,
+                ", ",
+                $a1,
+                ", s25\n",
+                "vmul.f32 s27, s27, ",
                 $x2,
                 "\n",
-                "vadd.f32 s0, s0, s28\n",
-                "vadd.f32 s1, s1, s29\n",
-                "vadd.f32 s2, s2, s30\n",
-                "vadd.f32 s3, s3, s31\n",
-                "vmul.f32 s28, s24, ",
+                "vadd.f32 ",
+                $a2,
+                ", ",
+                $a2,
+                ", s26\n",
+                "vmul.f32 s28, s28, ",
                 $x3,
                 "\n",
-                "vmul.f32 s29, s25, ",
+                "vadd.f32 ",
+                $a3,
+                ", ",
+                $a3,
+                ", s27\n",
+                "vmul.f32 s29, s29, ",
                 $x3,
                 "\n",
-                "vmul.f32 s30, s26, ",
+                "vadd.f32 ",
+                $a0,
+                ", ",
+                $a0,
+                ", s28\n",
+                "vmul.f32 s30, s30, ",
                 $x3,
                 "\n",
-                "vmul.f32 s31, s27, ",
+                "vadd.f32 ",
+                $a1,
+                ", ",
+                $a1,
+                ", s29\n",
+                "vmul.f32 s31, s31, ",
                 $x3,
                 "\n",
-                "vadd.f32 s0, s0, s28\n",
-                "vadd.f32 s1, s1, s29\n",
-                "vadd.f32 s2, s2, s30\n",
-                "vadd.f32 s3, s3, s31\n",
+                "vadd.f32 ",
+                $a2,
+                ", ",
+                $a2,
+                ", s30\n",
+                "vadd.f32 ",
+                $a3,
+                ", ",
+                $a3,
+                ", s31\n",
             )
         };
     }
 
-    /// The f32 layer: per block, accumulators s0-s3 from +0.0, `n / 8` iterations
-    /// of 8 columns (VLDM of 8 inputs into s4-s11, two VLDM of 16 weights into
-    /// s12-s27, products in s28-s31), then `n % 8` single columns; VSTM of s0-s3.
-    /// The blocks come from two parts: `blocks` of `w`, then `blocks2` of `w2` (the
-    /// weight pointer and the count switch once, after the first part). All 32 FPU
+    /// One column of the f32 layer kernel for a pair of blocks: input s8, weights
+    /// s16-s19 (first block) and s20-s23 (second), accumulators s0-s3 and s4-s7;
+    /// VMUL in place, each VADD two instructions after the VMUL it reads.
+    macro_rules! column8_f32 {
+        () => {
+            concat!(
+                "vmul.f32 s16, s16, s8\n",
+                "vmul.f32 s17, s17, s8\n",
+                "vadd.f32 s0, s0, s16\n",
+                "vmul.f32 s18, s18, s8\n",
+                "vadd.f32 s1, s1, s17\n",
+                "vmul.f32 s19, s19, s8\n",
+                "vadd.f32 s2, s2, s18\n",
+                "vmul.f32 s20, s20, s8\n",
+                "vadd.f32 s3, s3, s19\n",
+                "vmul.f32 s21, s21, s8\n",
+                "vadd.f32 s4, s4, s20\n",
+                "vmul.f32 s22, s22, s8\n",
+                "vadd.f32 s5, s5, s21\n",
+                "vmul.f32 s23, s23, s8\n",
+                "vadd.f32 s6, s6, s22\n",
+                "vadd.f32 s7, s7, s23\n",
+            )
+        };
+    }
+
+    /// The f32 layer: the blocks of each part, two at a time (8 rows sharing every
+    /// input load: accumulators s0-s7 from +0.0), `n / 8` iterations of 8 columns
+    /// (VLDM of 8 inputs into s8-s15, then per block and 4 columns one VLDM of 16
+    /// weights into s16-s31 and 16 in-place VMUL + 16 VADD), then `n % 8` single
+    /// columns; VSTM of s0-s7. A part's odd last block runs as a pair with itself
+    /// (both weight pointers on it) and stores s0-s3 only. `parts` holds
+    /// `nparts` entries `[weights address, blocks]`, run in order. All 32 FPU
     /// registers are saved and restored inside the block (VPUSH/VPOP of d0-d15, once
     /// per layer).
     ///
     /// # Safety
-    /// `out` valid for `blocks + blocks2` blocks (written), `blocks > 0`, `w` for
-    /// `blocks * n` columns, `w2` for `blocks2 * n`, `x` for `n > 0` values.
+    /// `parts` valid for `nparts > 0` entries, each weight address valid for its
+    /// `blocks * n` columns; `out` valid for the sum of the blocks (written); `x` for
+    /// `n > 0` values.
     #[inline(always)]
     pub unsafe fn matvec4_f32(
         out: *mut [f32; 4],
-        w: *const [f32; 4],
-        blocks: usize,
-        w2: *const [f32; 4],
-        blocks2: usize,
+        parts: *const [usize; 2],
+        nparts: usize,
         x: *const f32,
         n: usize,
     ) {
-        // SAFETY (caller: pointers valid as documented): per block the loops read n
-        // values of `x` and n columns of `w` or `w2` (each advances block after block)
-        // and write one `[f32; 4]` of `out`; every FPU register is pushed before and
-        // popped after; sp is restored; only declared core registers and the flags
-        // change.
+        // SAFETY (caller: pointers valid as documented): per block pair the loops read
+        // n values of `x` and n columns of each of the two blocks (the second pointer
+        // starts n columns after the first, or on the first for an odd last block),
+        // and write two (or one) `[f32; 4]` of `out`; every FPU register is pushed
+        // before and popped after; sp is restored; only declared core registers and
+        // the flags change.
         unsafe {
             asm!(
                 "vpush {{d0-d15}}",
+                // Next part: its weights and block count.
+                "1:",
+                "ldr {wp}, [{tbl}], #4",
+                "ldr {nb}, [{tbl}], #4",
+                "cmp {nb}, #0",
+                "beq 7f",
+                // Next pair of blocks (or the odd last one twice).
                 "2:",
                 "movs {k}, #0",
                 "vmov s0, s1, {k}, {k}",
                 "vmov s2, s3, {k}, {k}",
+                "vmov s4, s5, {k}, {k}",
+                "vmov s6, s7, {k}, {k}",
                 "mov {xp}, {xb}",
+                "add {wq}, {wp}, {n}, lsl #4",
+                "cmp {nb}, #1",
+                "it eq",
+                "moveq {wq}, {wp}",
                 "lsrs {k}, {n}, #3",
                 "beq 4f",
                 "3:",
-                "vldmia {xp}!, {{s4-s11}}",
-                "vldmia {wp}!, {{s12-s27}}",
-                cols4_f32!("s4", "s5", "s6", "s7"),
-                "vldmia {wp}!, {{s12-s27}}",
-                cols4_f32!("s8", "s9", "s10", "s11"),
+                "vldmia {xp}!, {{s8-s15}}",
+                "vldmia {wp}!, {{s16-s31}}",
+                products16_f32!("s8", "s9", "s10", "s11", "s0", "s1", "s2", "s3"),
+                "vldmia {wq}!, {{s16-s31}}",
+                products16_f32!("s8", "s9", "s10", "s11", "s4", "s5", "s6", "s7"),
+                "vldmia {wp}!, {{s16-s31}}",
+                products16_f32!("s12", "s13", "s14", "s15", "s0", "s1", "s2", "s3"),
+                "vldmia {wq}!, {{s16-s31}}",
+                products16_f32!("s12", "s13", "s14", "s15", "s4", "s5", "s6", "s7"),
                 "subs {k}, {k}, #1",
                 "bne 3b",
                 "4:",
                 "ands {k}, {n}, #7",
                 "beq 6f",
                 "5:",
-                "vldmia {xp}!, {{s4}}",
-                "vldmia {wp}!, {{s12-s15}}",
-                "vmul.f32 s28, s12, s4",
-                "vmul.f32 s29, s13, s4",
-                "vmul.f32 s30, s14, s4",
-                "vmul.f32 s31, s15, s4",
-                "vadd.f32 s0, s0, s28",
-                "vadd.f32 s1, s1, s29",
-                "vadd.f32 s2, s2, s30",
-                "vadd.f32 s3, s3, s31",
+                "vldmia {xp}!, {{s8}}",
+                "vldmia {wp}!, {{s16-s19}}",
+                "vldmia {wq}!, {{s20-s23}}",
+                column8_f32!(),
                 "subs {k}, {k}, #1",
                 "bne 5b",
                 "6:",
-                "vstmia {op}!, {{s0-s3}}",
-                "subs {nb}, {nb}, #1",
+                "mov {wp}, {wq}",
+                "cmp {nb}, #1",
+                "beq 8f",
+                "vstmia {op}!, {{s0-s7}}",
+                "subs {nb}, {nb}, #2",
                 "bne 2b",
-                // The second part, if any: its blocks and weights, once.
-                "movs {nb}, {nb2}",
-                "beq 7f",
-                "mov {wp}, {wp2}",
-                "movs {nb2}, #0",
-                "b 2b",
                 "7:",
+                "subs {np}, {np}, #1",
+                "bne 1b",
+                "b 9f",
+                "8:",
+                "vstmia {op}!, {{s0-s3}}",
+                "subs {np}, {np}, #1",
+                "bne 1b",
+                "9:",
                 "vpop {{d0-d15}}",
                 op = inout(reg) out => _,
-                wp = inout(reg) w => _,
-                wp2 = in(reg) w2,
+                tbl = inout(reg) parts => _,
+                np = inout(reg) nparts => _,
                 xb = in(reg) x,
                 n = in(reg) n,
-                nb = inout(reg) blocks => _,
-                nb2 = inout(reg) blocks2 => _,
+                wp = out(reg) _,
+                wq = out(reg) _,
+                nb = out(reg) _,
                 xp = out(reg) _,
                 k = out(reg) _,
             );
@@ -1472,16 +1551,19 @@ mod tests {
                 "block {b}"
             );
         }
-        // The same layer from two parts: the same bits, whichever split.
-        for split in 0..=2 {
-            let mut parts = [[9.0f32; 4]; 2];
-            let (head, tail) = wf.split_at(split * N);
-            matvec4_f32_parts(&mut parts, head, tail, &xf);
-            assert_eq!(
-                parts.map(|b| b.map(f32::to_bits)),
-                out.map(|b| b.map(f32::to_bits)),
-                "split after {split} blocks"
-            );
+        // The same layer from three parts: the same bits, whichever split.
+        for first in 0..=2 {
+            for second in first..=2 {
+                let mut parts = [[9.0f32; 4]; 2];
+                let (head, rest) = wf.split_at(first * N);
+                let (middle, tail) = rest.split_at((second - first) * N);
+                matvec4_f32_parts(&mut parts, [head, middle, tail], &xf);
+                assert_eq!(
+                    parts.map(|b| b.map(f32::to_bits)),
+                    out.map(|b| b.map(f32::to_bits)),
+                    "split after {first} and {second} blocks"
+                );
+            }
         }
         let mut none = [[1.0f32; 4]; 1];
         matvec4_f32(&mut none, &wf, &[]);

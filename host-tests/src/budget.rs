@@ -53,6 +53,10 @@ pub struct BinaryBudget {
     /// (the exporter's SRAM budget for them is what remains).
     #[serde(default)]
     pub firmware_ram_bytes: Option<u64>,
+    /// Bytes of CCM SRAM kept for the per-tick code (the exporter may place model data
+    /// in the rest of the `CCMRAM` region).
+    #[serde(default)]
+    pub ccm_code_reserve_bytes: Option<u64>,
 }
 
 /// The budget file (`host-tests/budgets.toml`).

@@ -62,15 +62,16 @@ impl MemoryMap {
     /// The QEMU mps2-an386 image (`firmware/qemu/memory.x`) as the board places it
     /// (`board/memory.x`): the image's FLASH region (0x0000_0000, 4 MiB: vector
     /// table, `.text`, `.rodata`) is the board's flash at 0x0800_0000, its CCMRAM
-    /// region (0x203F_0000, 64 KiB: `.ccmram_text`) the board's CCM SRAM on the
-    /// instruction bus at 0x1000_0000, the rest of its RAM (0x2000_0000: `.data`,
-    /// `.bss`, stack) the board's SRAM at 0x2000_0000.
+    /// region (0x203E_0000, 128 KiB: `.ccmram_text` and `.ccmram_data`) the board's
+    /// CCM SRAM (code on the instruction bus at 0x1000_0000, data zero-wait on the
+    /// data bus), the rest of its RAM (0x2000_0000: `.data`, `.bss`, stack) the
+    /// board's SRAM at 0x2000_0000.
     pub fn qemu_image_on_g474() -> MemoryMap {
         MemoryMap {
             ranges: vec![
                 (0x0000_0000, 0x0040_0000, Region::Flash),
-                (0x203F_0000, 0x2040_0000, Region::CcmSram),
-                (0x2000_0000, 0x203F_0000, Region::Sram),
+                (0x203E_0000, 0x2040_0000, Region::CcmSram),
+                (0x2000_0000, 0x203E_0000, Region::Sram),
             ],
         }
     }
@@ -684,6 +685,8 @@ mod tests {
         assert_eq!(q.region(0x0000_1234), Region::Flash);
         assert_eq!(q.region(0x2000_0100), Region::Sram);
         assert_eq!(q.region(0x203F_8100), Region::CcmSram);
+        assert_eq!(q.region(0x203E_0000), Region::CcmSram);
+        assert_eq!(q.region(0x203D_FFFC), Region::Sram);
         assert_eq!(q.region(0x4000_0000), Region::Other);
         let b = MemoryMap::g474();
         assert_eq!(b.region(0x0800_0000), Region::Flash);

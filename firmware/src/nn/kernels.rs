@@ -534,9 +534,12 @@ pub struct F32View<'a> {
     /// Activation after the input layer.
     pub input_activation: InputActivation,
     /// The first blocks of the gate matrix (`[HS * Z]`, `Z = E + H`): with
-    /// [`Self::w_gates_tail`] the `[H * Z]` gate matrix ([`F32GateRows`]).
+    /// [`Self::w_gates_middle`] and [`Self::w_gates_tail`] the `[H * Z]` gate matrix
+    /// ([`F32GateRows`]).
     pub w_gates: &'a [[f32; 4]],
-    /// The other `H - HS` blocks of the gate matrix (`[(H - HS) * Z]`).
+    /// The next `HM` blocks of the gate matrix (`[HM * Z]`).
+    pub w_gates_middle: &'a [[f32; 4]],
+    /// The other `H - HS - HM` blocks of the gate matrix (`[(H - HS - HM) * Z]`).
     pub w_gates_tail: &'a [[f32; 4]],
     /// `[H]`
     pub b_gates: &'a [[f32; 4]],
@@ -570,7 +573,7 @@ impl F32View<'_> {
             (
                 "w_gates",
                 d.hidden * z,
-                self.w_gates.len() + self.w_gates_tail.len(),
+                self.w_gates.len() + self.w_gates_middle.len() + self.w_gates_tail.len(),
             ),
             ("b_gates", d.hidden, self.b_gates.len()),
             ("w_out", d.output_blocks * d.hidden, self.w_out.len()),
@@ -625,8 +628,7 @@ impl F32View<'_> {
         let z_in: &[f32] = z;
         dsp::matvec4_f32_parts(
             acc,
-            self.w_gates,
-            self.w_gates_tail,
+            [self.w_gates, self.w_gates_middle, self.w_gates_tail],
             z_in.get(..e_len + d.hidden).unwrap_or(z_in),
         );
         let acc: &[[f32; 4]] = acc;
@@ -698,16 +700,18 @@ impl InputLayer for LinearInput {
 }
 
 /// The gate matrix of a compiled-in f32 network, `H` blocks over `Z` columns (block
-/// `j` = rows `i_j, f_j, g_j, o_j`, column-interleaved), as two statics so that the
-/// exporter can place them apart: the first blocks (`head`) in SRAM and the rest
-/// (`tail`) in flash when the whole matrix does not fit the board's SRAM budget (one
-/// of them is empty otherwise). The generated file asserts at compile time that
-/// together they hold `H` blocks.
+/// `j` = rows `i_j, f_j, g_j, o_j`, column-interleaved), as three statics so that the
+/// exporter can place them apart: when the whole matrix does not fit the board's SRAM
+/// budget, the first blocks (`head`) in SRAM, the next (`middle`) in CCM SRAM and the
+/// rest (`tail`) in flash (unused parts are empty). The generated file asserts at
+/// compile time that together they hold `H` blocks.
 #[derive(Clone, Copy, Debug)]
 pub struct F32GateRows<const Z: usize> {
     /// Blocks `0..HS`.
     pub head: &'static [[[f32; 4]; Z]],
-    /// Blocks `HS..H`.
+    /// Blocks `HS..HS + HM`.
+    pub middle: &'static [[[f32; 4]; Z]],
+    /// Blocks `HS + HM..H`.
     pub tail: &'static [[[f32; 4]; Z]],
 }
 
@@ -828,6 +832,7 @@ impl<
             b_in: &self.b_in,
             input_activation: A::ACTIVATION,
             w_gates: self.w_gates.head.as_flattened(),
+            w_gates_middle: self.w_gates.middle.as_flattened(),
             w_gates_tail: self.w_gates.tail.as_flattened(),
             b_gates: &self.b_gates,
             w_out: self.w_out.as_flattened(),
