@@ -963,21 +963,43 @@ mod asm {
         };
     }
 
+    /// One column of the f32 layer kernel for a single block: input s8, weights
+    /// s16-s19, accumulators s0-s3; VMUL in place, each VADD two instructions after
+    /// the VMUL it reads.
+    macro_rules! column4_f32 {
+        () => {
+            concat!(
+                "vmul.f32 s16, s16, s8\n",
+                "vmul.f32 s17, s17, s8\n",
+                "vadd.f32 s0, s0, s16\n",
+                "vmul.f32 s18, s18, s8\n",
+                "vadd.f32 s1, s1, s17\n",
+                "vmul.f32 s19, s19, s8\n",
+                "vadd.f32 s2, s2, s18\n",
+                "vadd.f32 s3, s3, s19\n",
+            )
+        };
+    }
+
     /// The f32 layer: the blocks of each part, two at a time (8 rows sharing every
     /// input load: accumulators s0-s7 from +0.0), `n / 8` iterations of 8 columns
     /// (VLDM of 8 inputs into s8-s15, then per block and 4 columns one VLDM of 16
     /// weights into s16-s31 and 16 in-place VMUL + 16 VADD), then `n % 8` single
-    /// columns; VSTM of s0-s7. A part's odd last block runs as a pair with itself
-    /// (both weight pointers on it) and stores s0-s3 only. `parts` holds
-    /// `nparts` entries `[weights address, blocks]`, run in order. All 32 FPU
-    /// registers are saved and restored inside the block (VPUSH/VPOP of d0-d15, once
-    /// per layer).
+    /// columns; VSTM of s0-s7. A part's odd last block runs alone (the same loops
+    /// over one block, accumulators s0-s3). `parts` holds `nparts` entries
+    /// `[weights address, blocks]`, run in order. All 32 FPU registers are saved and
+    /// restored inside the block (VPUSH/VPOP of d0-d15, once per layer).
     ///
     /// # Safety
     /// `parts` valid for `nparts > 0` entries, each weight address valid for its
     /// `blocks * n` columns; `out` valid for the sum of the blocks (written); `x` for
     /// `n > 0` values.
-    #[inline(always)]
+    ///
+    /// One copy for every f32 layer of the image (not inlined: it is the biggest
+    /// kernel, and on the board it runs from CCM SRAM, whose bytes the exporter also
+    /// gives to model data).
+    #[inline(never)]
+    #[cfg_attr(target_os = "none", unsafe(link_section = ".ccmram_text"))]
     pub unsafe fn matvec4_f32(
         out: *mut [f32; 4],
         parts: *const [usize; 2],
@@ -987,10 +1009,10 @@ mod asm {
     ) {
         // SAFETY (caller: pointers valid as documented): per block pair the loops read
         // n values of `x` and n columns of each of the two blocks (the second pointer
-        // starts n columns after the first, or on the first for an odd last block),
-        // and write two (or one) `[f32; 4]` of `out`; every FPU register is pushed
-        // before and popped after; sp is restored; only declared core registers and
-        // the flags change.
+        // starts n columns after the first) and write two `[f32; 4]` of `out`; an odd
+        // last block reads its own n columns and writes one; every FPU register is
+        // pushed before and popped after; sp is restored; only declared core registers
+        // and the flags change.
         unsafe {
             asm!(
                 "vpush {{d0-d15}}",
@@ -1000,18 +1022,17 @@ mod asm {
                 "ldr {nb}, [{tbl}], #4",
                 "cmp {nb}, #0",
                 "beq 7f",
-                // Next pair of blocks (or the odd last one twice).
+                // Next pair of blocks (the odd last one: 10f).
                 "2:",
                 "movs {k}, #0",
                 "vmov s0, s1, {k}, {k}",
                 "vmov s2, s3, {k}, {k}",
+                "mov {xp}, {xb}",
+                "cmp {nb}, #1",
+                "beq 10f",
                 "vmov s4, s5, {k}, {k}",
                 "vmov s6, s7, {k}, {k}",
-                "mov {xp}, {xb}",
                 "add {wq}, {wp}, {n}, lsl #4",
-                "cmp {nb}, #1",
-                "it eq",
-                "moveq {wq}, {wp}",
                 "lsrs {k}, {n}, #3",
                 "beq 4f",
                 "3:",
@@ -1038,8 +1059,6 @@ mod asm {
                 "bne 5b",
                 "6:",
                 "mov {wp}, {wq}",
-                "cmp {nb}, #1",
-                "beq 8f",
                 "vstmia {op}!, {{s0-s7}}",
                 "subs {nb}, {nb}, #2",
                 "bne 2b",
@@ -1047,7 +1066,28 @@ mod asm {
                 "subs {np}, {np}, #1",
                 "bne 1b",
                 "b 9f",
-                "8:",
+                // A part's odd last block alone.
+                "10:",
+                "lsrs {k}, {n}, #3",
+                "beq 12f",
+                "11:",
+                "vldmia {xp}!, {{s8-s15}}",
+                "vldmia {wp}!, {{s16-s31}}",
+                products16_f32!("s8", "s9", "s10", "s11", "s0", "s1", "s2", "s3"),
+                "vldmia {wp}!, {{s16-s31}}",
+                products16_f32!("s12", "s13", "s14", "s15", "s0", "s1", "s2", "s3"),
+                "subs {k}, {k}, #1",
+                "bne 11b",
+                "12:",
+                "ands {k}, {n}, #7",
+                "beq 14f",
+                "13:",
+                "vldmia {xp}!, {{s8}}",
+                "vldmia {wp}!, {{s16-s19}}",
+                column4_f32!(),
+                "subs {k}, {k}, #1",
+                "bne 13b",
+                "14:",
                 "vstmia {op}!, {{s0-s3}}",
                 "subs {np}, {np}, #1",
                 "bne 1b",
