@@ -15,7 +15,7 @@ use host_tests::budget::{self, Budgets, Options};
 ///   SRAM; the exporter puts the first 35 of its 64 gate blocks in SRAM, and the
 ///   64 120 B that stream from flash cost more than the limit leaves beside the
 ///   zero-wait compute (the floor in host-tests/README.md).
-const KNOWN_CHIP_OVERRUNS: [(&str, u64); 1] = [("lstm_paper_f32", 161_349)];
+const KNOWN_CHIP_OVERRUNS: [(&str, u64); 1] = [("lstm_paper_f32", 160_548)];
 
 #[test]
 fn firmware_fits_its_budgets_and_lowered_budgets_fail() {

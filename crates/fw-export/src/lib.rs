@@ -635,13 +635,12 @@ impl F32Net {
         let mut z = vec![0.0f32; e + d.hidden];
         let mut c = vec![0.0f32; d.hidden];
         let mut xn = vec![0.0f32; d.input];
-        let mut hn = vec![0.0f32; d.hidden];
         let mut acc = vec![[0.0f32; 4]; d.hidden];
         inputs
             .iter()
             .map(|x| {
                 let mut y = vec![0.0f32; d.output];
-                v.step(&mut z, &mut c, &mut xn, &mut hn, &mut acc, x, &mut y);
+                v.step(&mut z, &mut c, &mut xn, &mut acc, x, &mut y);
                 y
             })
             .collect()

@@ -587,17 +587,14 @@ impl F32View<'_> {
         lens.iter().find(|(_, e, a)| e != a).map(|(n, _, _)| *n)
     }
 
-    /// The kernel: one step. `z` (`E + H`) and `c` (`H`) are the state, `xn` (`I`),
-    /// `h_new` (`H`) and `acc` (`H` blocks) scratch. Lengths are trusted (never a
-    /// panic).
-    #[allow(clippy::too_many_arguments)]
+    /// The kernel: one step. `z` (`E + H`) and `c` (`H`) are the state, `xn` (`I`)
+    /// and `acc` (`H` blocks) scratch. Lengths are trusted (never a panic).
     #[inline(always)]
     pub fn step(
         &self,
         z: &mut [f32],
         c: &mut [f32],
         xn: &mut [f32],
-        h_new: &mut [f32],
         acc: &mut [[f32; 4]],
         input: &[f32],
         out: &mut [f32],
@@ -632,8 +629,10 @@ impl F32View<'_> {
             z_in.get(..e_len + d.hidden).unwrap_or(z_in),
         );
         let acc: &[[f32; 4]] = acc;
-        // The cells: first each cell's gates and new c (`h_new` holds o for now), then
-        // h = o tanh(c) four cells at a time (the same bits as one at a time).
+        // The gate layer has read h: the cells write the new h in its place in z. First
+        // each cell's gates and new c (h holds o for now), then h = o tanh(c) four
+        // cells at a time (the same bits as one at a time).
+        let h_new = z.get_mut(e_len..).unwrap_or_default();
         let rows = acc.iter().zip(self.b_gates);
         for (((acc, b), cj), hn) in rows.zip(c.iter_mut()).zip(h_new.iter_mut()) {
             let [i, f, g, o] =
@@ -651,11 +650,6 @@ impl F32View<'_> {
         }
         for (cj, hn) in c_rest.iter().zip(h_rest.iter_mut()) {
             *hn *= math::tanh_fast(*cj);
-        }
-        if let Some(hz) = z.get_mut(e_len..) {
-            for (dst, src) in hz.iter_mut().zip(h_new.iter()) {
-                *dst = *src;
-            }
         }
         let h_new: &[f32] = h_new;
         let mut ys = out.iter_mut();
@@ -849,13 +843,11 @@ impl<
     pub fn step(&self, state: &mut F32State<Z, H>, input: &[f32; I]) -> [f32; O] {
         let () = Self::SHAPE;
         let mut xn = [0.0f32; I];
-        let mut h_new = [0.0f32; H];
         let mut out = [0.0f32; O];
         self.view().step(
             &mut state.z,
             &mut state.c,
             &mut xn,
-            &mut h_new,
             &mut state.acc,
             input,
             &mut out,
