@@ -6,8 +6,9 @@
 //! [`matvec4_f32`]) run every 4-row block of a layer in one call: 1.34 estimated cycles
 //! per MAC in the int16 loop (LDRD + 2 LDM + 8 SMLAD per quad, 8 quads per iteration),
 //! about 1.6 in the int8 loop (LDM + 2 LDR + 8 SXTB16 + 8 SMLAD per quad, 2 quads per
-//! iteration), 3.44 in the f32 loop (VLDM of 8 inputs and 2 x 16 weights, VMUL + VADD,
-//! 8 columns per iteration); the single-block kernels ([`dot4_i16`], [`dot4_i8`],
+//! iteration), 3.25 in the f32 loop (two blocks at a time: VLDM of 8 inputs and 4 x 16
+//! weights, in-place VMUL + VADD, 8 columns per iteration); the single-block kernels
+//! ([`dot4_i16`], [`dot4_i8`],
 //! [`dot4_f32`])
 //! serve the small layers. [`lstm_small_i16`] runs a small int16 network's input
 //! layer, gates and cell updates in one unrolled block with `[e; h]` held in FPU
@@ -15,7 +16,7 @@
 //! keeps the bits of the plain Rust sum (and the M4 takes 3 cycles for VMLA against 2
 //! for VMUL + VADD only when the VADD does not read the VMUL's result in the next
 //! instruction: the FPU's one-cycle result stall, which the f32 kernels avoid by
-//! issuing a column's VMULs before its VADDs). Every kernel has a portable twin in plain Rust with the same wrapping
+//! placing each VADD two instructions after the VMUL it reads). Every kernel has a portable twin in plain Rust with the same wrapping
 //! (integer) or rounding (f32) semantics; the host (and any target without the DSP
 //! extension) runs the twin, the Cortex-M4 the assembly, the twin tests here check
 //! the kernels against their definitions, and the QEMU golden suites (`host-tests`)
