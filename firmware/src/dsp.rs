@@ -269,6 +269,42 @@ pub fn matvec4_f32_parts(out: &mut [[f32; 4]], parts: [&[[f32; 4]]; 3], x: &[f32
     }
 }
 
+/// The cell updates of an f32 LSTM layer: for each cell `j`, the gates `x = acc[j] +
+/// bias[j]` (rows i, f, g, o) through [`math::lstm_gates_fast`], then `c[j] = f c[j] +
+/// i g` and `h[j] = o` (the caller multiplies `h` by `tanh(c)`), over `min(acc.len(),
+/// bias.len(), c.len(), h.len())` cells. On the Cortex-M4F one assembly loop computes
+/// each cell's four exponentials side by side, one operation across the four lanes at
+/// a time (the same operations in the same order per lane, so the same bits; no
+/// instruction reads the VADD/VMUL right before it), the FPU registers saved once.
+///
+/// [`math::lstm_gates_fast`]: crate::math::lstm_gates_fast
+#[inline(always)]
+pub fn lstm_cells_f32(acc: &[[f32; 4]], bias: &[[f32; 4]], c: &mut [f32], h: &mut [f32]) {
+    let n = acc.len().min(bias.len()).min(c.len()).min(h.len());
+    if n == 0 {
+        return;
+    }
+    #[cfg(fw_dsp_asm)]
+    {
+        // SAFETY: n > 0 cells of each of the four slices, in bounds by the computation
+        // above; the constants' table has the 12 values the kernel reads.
+        unsafe {
+            asm::lstm_cells_f32(
+                acc.as_ptr(),
+                bias.as_ptr(),
+                c.as_mut_ptr(),
+                h.as_mut_ptr(),
+                n,
+                &crate::math::LSTM_CELL_CONSTANTS,
+            )
+        }
+    }
+    #[cfg(not(fw_dsp_asm))]
+    {
+        portable::lstm_cells_f32(acc, bias, c, h)
+    }
+}
+
 /// Whether this build runs the assembly kernels (`cfg(fw_dsp_asm)`), else their portable
 /// twins.
 pub const ASM: bool = cfg!(fw_dsp_asm);
@@ -434,6 +470,18 @@ pub mod portable {
         }
         for (o, wb) in out.iter_mut().zip(w.chunks_exact(x.len())) {
             *o = dot4_f32([0.0; 4], wb, x);
+        }
+    }
+
+    /// Portable [`super::lstm_cells_f32`].
+    #[inline(always)]
+    pub fn lstm_cells_f32(acc: &[[f32; 4]], bias: &[[f32; 4]], c: &mut [f32], h: &mut [f32]) {
+        let cells = acc.iter().zip(bias).zip(c.iter_mut()).zip(h.iter_mut());
+        for (((a, b), cj), hj) in cells {
+            let [i, f, g, o] =
+                crate::math::lstm_gates_fast([a[0] + b[0], a[1] + b[1], a[2] + b[2], a[3] + b[3]]);
+            *cj = f * *cj + i * g;
+            *hj = o;
         }
     }
 
@@ -1108,6 +1156,223 @@ mod asm {
         }
     }
 
+    /// The cell loop of [`super::lstm_cells_f32`]. Registers: s0-s3 the gate sums `x`,
+    /// s4-s7 `y = -|x|` (lane 2: `-2 min(|x|, 9)`), then `r`, then the activations;
+    /// s8-s11 `u`, `k`, the scale; s12-s15 `hi`, `z`, the denominators; s16-s19 the
+    /// polynomial and `e`; s20-s31 the constants (`consts`: -87, -log2 e, 0.5,
+    /// ln 2 high and low parts, P0-P4, 1, 9). Each step runs across the four lanes.
+    ///
+    /// # Safety
+    /// `acc`, `bias` valid for `n > 0` blocks, `c` and `h` for `n` values (written).
+    #[inline(always)]
+    pub unsafe fn lstm_cells_f32(
+        acc: *const [f32; 4],
+        bias: *const [f32; 4],
+        c: *mut f32,
+        h: *mut f32,
+        n: usize,
+        consts: &[f32; 12],
+    ) {
+        // SAFETY (caller: pointers valid as documented): per cell the loop reads one
+        // block of `acc` and `bias` and one value of `c`, and writes one value of `c`
+        // and of `h`; every FPU register is pushed before and popped after; sp is
+        // restored; only declared core registers and the flags change.
+        unsafe {
+            asm!(
+                "vpush {{d0-d15}}",
+                "vldmia {consts}, {{s20-s31}}",
+                "1:",
+                "vldmia {acc}!, {{s4-s7}}",
+                "vldmia {bias}!, {{s8-s11}}",
+                "vadd.f32 s0, s4, s8",
+                "vadd.f32 s1, s5, s9",
+                "vadd.f32 s2, s6, s10",
+                "vadd.f32 s3, s7, s11",
+                "vabs.f32 s4, s0",
+                "vabs.f32 s5, s1",
+                "vabs.f32 s6, s2",
+                "vabs.f32 s7, s3",
+                "vcmp.f32 s6, s31",
+                "vmrs APSR_nzcv, fpscr",
+                "it gt",
+                "vmovgt.f32 s6, s31",
+                "vmov.f32 s10, #-2.0",
+                "vneg.f32 s4, s4",
+                "vneg.f32 s5, s5",
+                "vmul.f32 s6, s10, s6",
+                "vneg.f32 s7, s7",
+                "vcmp.f32 s4, s20",
+                "vmrs APSR_nzcv, fpscr",
+                "it mi",
+                "vmovmi.f32 s4, s20",
+                "vcmp.f32 s5, s20",
+                "vmrs APSR_nzcv, fpscr",
+                "it mi",
+                "vmovmi.f32 s5, s20",
+                "vcmp.f32 s6, s20",
+                "vmrs APSR_nzcv, fpscr",
+                "it mi",
+                "vmovmi.f32 s6, s20",
+                "vcmp.f32 s7, s20",
+                "vmrs APSR_nzcv, fpscr",
+                "it mi",
+                "vmovmi.f32 s7, s20",
+                "vmul.f32 s8, s4, s21",
+                "vmul.f32 s9, s5, s21",
+                "vmul.f32 s10, s6, s21",
+                "vmul.f32 s11, s7, s21",
+                "vadd.f32 s8, s8, s22",
+                "vadd.f32 s9, s9, s22",
+                "vadd.f32 s10, s10, s22",
+                "vadd.f32 s11, s11, s22",
+                "vcvt.s32.f32 s8, s8",
+                "vcvt.s32.f32 s9, s9",
+                "vcvt.s32.f32 s10, s10",
+                "vcvt.s32.f32 s11, s11",
+                "vmov {k0}, s8",
+                "vmov {k1}, s9",
+                "vmov {k2}, s10",
+                "vmov {k3}, s11",
+                "vcvt.f32.s32 s8, s8",
+                "vcvt.f32.s32 s9, s9",
+                "vcvt.f32.s32 s10, s10",
+                "vcvt.f32.s32 s11, s11",
+                "vmul.f32 s12, s8, s23",
+                "vmul.f32 s13, s9, s23",
+                "vmul.f32 s14, s10, s23",
+                "vmul.f32 s15, s11, s23",
+                "vmul.f32 s8, s8, s24",
+                "vmul.f32 s9, s9, s24",
+                "vmul.f32 s10, s10, s24",
+                "vmul.f32 s11, s11, s24",
+                "vadd.f32 s4, s4, s12",
+                "vadd.f32 s5, s5, s13",
+                "vadd.f32 s6, s6, s14",
+                "vadd.f32 s7, s7, s15",
+                "vadd.f32 s4, s4, s8",
+                "vadd.f32 s5, s5, s9",
+                "vadd.f32 s6, s6, s10",
+                "vadd.f32 s7, s7, s11",
+                "vmul.f32 s12, s4, s4",
+                "vmul.f32 s13, s5, s5",
+                "vmul.f32 s14, s6, s6",
+                "vmul.f32 s15, s7, s7",
+                "vmul.f32 s16, s25, s4",
+                "vmul.f32 s17, s25, s5",
+                "vmul.f32 s18, s25, s6",
+                "vmul.f32 s19, s25, s7",
+                "vadd.f32 s16, s16, s26",
+                "vadd.f32 s17, s17, s26",
+                "vadd.f32 s18, s18, s26",
+                "vadd.f32 s19, s19, s26",
+                "vmul.f32 s16, s16, s4",
+                "vmul.f32 s17, s17, s5",
+                "vmul.f32 s18, s18, s6",
+                "vmul.f32 s19, s19, s7",
+                "vadd.f32 s16, s16, s27",
+                "vadd.f32 s17, s17, s27",
+                "vadd.f32 s18, s18, s27",
+                "vadd.f32 s19, s19, s27",
+                "vmul.f32 s16, s16, s4",
+                "vmul.f32 s17, s17, s5",
+                "vmul.f32 s18, s18, s6",
+                "vmul.f32 s19, s19, s7",
+                "vadd.f32 s16, s16, s28",
+                "vadd.f32 s17, s17, s28",
+                "vadd.f32 s18, s18, s28",
+                "vadd.f32 s19, s19, s28",
+                "vmul.f32 s16, s16, s4",
+                "vmul.f32 s17, s17, s5",
+                "vmul.f32 s18, s18, s6",
+                "vmul.f32 s19, s19, s7",
+                "vadd.f32 s16, s16, s29",
+                "vadd.f32 s17, s17, s29",
+                "vadd.f32 s18, s18, s29",
+                "vadd.f32 s19, s19, s29",
+                "vmul.f32 s16, s16, s4",
+                "vmul.f32 s17, s17, s5",
+                "vmul.f32 s18, s18, s6",
+                "vmul.f32 s19, s19, s7",
+                "vadd.f32 s16, s16, s22",
+                "vadd.f32 s17, s17, s22",
+                "vadd.f32 s18, s18, s22",
+                "vadd.f32 s19, s19, s22",
+                "vmul.f32 s16, s16, s12",
+                "vmul.f32 s17, s17, s13",
+                "vmul.f32 s18, s18, s14",
+                "vmul.f32 s19, s19, s15",
+                "vadd.f32 s16, s16, s4",
+                "vadd.f32 s17, s17, s5",
+                "vadd.f32 s18, s18, s6",
+                "vadd.f32 s19, s19, s7",
+                "vadd.f32 s16, s16, s30",
+                "vadd.f32 s17, s17, s30",
+                "vadd.f32 s18, s18, s30",
+                "vadd.f32 s19, s19, s30",
+                "sub {k0}, {e127}, {k0}, lsl #23",
+                "sub {k1}, {e127}, {k1}, lsl #23",
+                "sub {k2}, {e127}, {k2}, lsl #23",
+                "sub {k3}, {e127}, {k3}, lsl #23",
+                "vmov s8, {k0}",
+                "vmov s9, {k1}",
+                "vmov s10, {k2}",
+                "vmov s11, {k3}",
+                "vmul.f32 s16, s16, s8",
+                "vmul.f32 s17, s17, s9",
+                "vmul.f32 s18, s18, s10",
+                "vmul.f32 s19, s19, s11",
+                "vadd.f32 s12, s30, s16",
+                "vadd.f32 s13, s30, s17",
+                "vadd.f32 s14, s30, s18",
+                "vadd.f32 s15, s30, s19",
+                "vsub.f32 s6, s30, s18",
+                "vcmp.f32 s0, #0",
+                "vmrs APSR_nzcv, fpscr",
+                "ite ge",
+                "vmovge.f32 s4, s30",
+                "vmovlt.f32 s4, s16",
+                "vcmp.f32 s1, #0",
+                "vmrs APSR_nzcv, fpscr",
+                "ite ge",
+                "vmovge.f32 s5, s30",
+                "vmovlt.f32 s5, s17",
+                "vcmp.f32 s3, #0",
+                "vmrs APSR_nzcv, fpscr",
+                "ite ge",
+                "vmovge.f32 s7, s30",
+                "vmovlt.f32 s7, s19",
+                "vdiv.f32 s4, s4, s12",
+                "vdiv.f32 s5, s5, s13",
+                "vdiv.f32 s6, s6, s14",
+                "vdiv.f32 s7, s7, s15",
+                "vcmp.f32 s2, #0",
+                "vmrs APSR_nzcv, fpscr",
+                "it mi",
+                "vnegmi.f32 s6, s6",
+                "vldr s8, [{c}]",
+                "vmul.f32 s9, s5, s8",
+                "vmul.f32 s10, s4, s6",
+                "vstmia {h}!, {{s7}}",
+                "vadd.f32 s8, s9, s10",
+                "vstmia {c}!, {{s8}}",
+                "subs {n}, {n}, #1",
+                "bne 1b",
+                "vpop {{d0-d15}}",
+                acc = inout(reg) acc => _,
+                bias = inout(reg) bias => _,
+                c = inout(reg) c => _,
+                h = inout(reg) h => _,
+                n = inout(reg) n => _,
+                consts = in(reg) consts.as_ptr(),
+                e127 = in(reg) 0x3f80_0000u32,
+                k0 = out(reg) _,
+                k1 = out(reg) _,
+                k2 = out(reg) _,
+                k3 = out(reg) _,
+            );
+        }
+    }
+
     /// One quad of a 4-row block of [`lstm_small_i16`] (input words in `$sa`, `$sb`):
     /// one LDM of its 8 weight words from lr, 8 SMLAD into r0-r3.
     macro_rules! small_quad_macs {
@@ -1609,6 +1874,49 @@ mod tests {
         let mut none = [[1.0f32; 4]; 1];
         matvec4_f32(&mut none, &wf, &[]);
         assert_eq!(none, [[0.0; 4]]);
+    }
+
+    #[test]
+    fn lstm_cells_f32_is_the_gates_and_the_cell_update() {
+        // Gate sums over the activations' whole range, NaN and the clamps included.
+        let sums = [
+            -100.0f32,
+            -9.5,
+            -1.25,
+            -0.0,
+            0.0,
+            3e-8,
+            0.7,
+            9.0,
+            20.0,
+            120.0,
+            f32::NAN,
+        ];
+        let acc: [[f32; 4]; 11] =
+            core::array::from_fn(|j| core::array::from_fn(|r| sums[(j + 3 * r) % sums.len()]));
+        let bias: [[f32; 4]; 11] = core::array::from_fn(|j| {
+            core::array::from_fn(|r| unit(word((4 * j + r) as u32)) - 0.5)
+        });
+        let c0: [f32; 11] = core::array::from_fn(|j| 4.0 * unit(word(50 + j as u32)) - 2.0);
+        let mut c = c0;
+        let mut h = [7.0f32; 11];
+        lstm_cells_f32(&acc, &bias, &mut c, &mut h);
+        for j in 0..11 {
+            let x: [f32; 4] = core::array::from_fn(|r| acc[j][r] + bias[j][r]);
+            let (i, f, g, o) = (
+                crate::math::sigmoid_fast(x[0]),
+                crate::math::sigmoid_fast(x[1]),
+                crate::math::tanh_fast(x[2]),
+                crate::math::sigmoid_fast(x[3]),
+            );
+            assert_eq!(c[j].to_bits(), (f * c0[j] + i * g).to_bits(), "cell {j}");
+            assert_eq!(h[j].to_bits(), o.to_bits(), "cell {j}");
+        }
+        // Only min(len) cells are touched.
+        let mut c2 = [1.0f32; 3];
+        let mut h2 = [2.0f32; 3];
+        lstm_cells_f32(&acc[..2], &bias, &mut c2, &mut h2);
+        assert_eq!((c2[2], h2[2]), (1.0, 2.0));
     }
 
     #[test]

@@ -89,6 +89,18 @@ pub fn host_dot() -> Vec<Record> {
         .collect()
 }
 
+/// The host's computation of the `cells` suite: the new cell state (`c`) and `o`
+/// (`h`) of each cell, index and input = the cell.
+pub fn host_cells() -> Vec<Record> {
+    let (c, h) = golden::cells_output();
+    let mut out = Vec::with_capacity(2 * golden::CELL_CASES);
+    for j in 0..golden::CELL_CASES {
+        out.push(Record::new("c", j, j as u32, c[j].to_bits()));
+        out.push(Record::new("h", j, j as u32, h[j].to_bits()));
+    }
+    out
+}
+
 /// The host's computation of the `dynamics` suite: one record per joint torque,
 /// function `tau<joint>`, index and input = the case number.
 pub fn host_dynamics() -> Vec<Record> {
@@ -190,6 +202,7 @@ pub fn check_report(report: &str) -> Result<Vec<SuiteCheck>> {
     let mut host: Vec<(&'static str, Vec<Record>)> = vec![
         ("math", host_math()),
         ("dot", host_dot()),
+        ("cells", host_cells()),
         ("dynamics", host_dynamics()),
         ("features", host_features()),
         ("lstm", host_lstm()),

@@ -87,6 +87,14 @@ fn main() -> ! {
     }
     out.line(format_args!("@end dot"));
 
+    out.line(format_args!("@suite cells {}", 2 * golden::CELL_CASES));
+    let (c, h) = golden::cells_output();
+    for j in 0..golden::CELL_CASES {
+        out.line(format_args!("c {} {:08x} {:08x}", j, j as u32, c[j].to_bits()));
+        out.line(format_args!("h {} {:08x} {:08x}", j, j as u32, h[j].to_bits()));
+    }
+    out.line(format_args!("@end cells"));
+
     out.line(format_args!(
         "@suite features {}",
         golden::FEATURE_CASES * golden::FEATURE_VALUES

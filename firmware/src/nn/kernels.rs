@@ -633,13 +633,7 @@ impl F32View<'_> {
         // each cell's gates and new c (h holds o for now), then h = o tanh(c) four
         // cells at a time (the same bits as one at a time).
         let h_new = z.get_mut(e_len..).unwrap_or_default();
-        let rows = acc.iter().zip(self.b_gates);
-        for (((acc, b), cj), hn) in rows.zip(c.iter_mut()).zip(h_new.iter_mut()) {
-            let [i, f, g, o] =
-                math::lstm_gates_fast([acc[0] + b[0], acc[1] + b[1], acc[2] + b[2], acc[3] + b[3]]);
-            *cj = f * *cj + i * g;
-            *hn = o;
-        }
+        dsp::lstm_cells_f32(acc, self.b_gates, c, h_new);
         let (c4, c_rest) = c.as_chunks::<4>();
         let (h4, h_rest) = h_new.as_chunks_mut::<4>();
         for (cs, hs) in c4.iter().zip(h4.iter_mut()) {
