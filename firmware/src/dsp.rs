@@ -305,6 +305,53 @@ pub fn lstm_cells_f32(acc: &[[f32; 4]], bias: &[[f32; 4]], c: &mut [f32], h: &mu
     }
 }
 
+/// `x[j] = math::tanh_fast4(x[j] + bias[j])` for `min(x.len(), bias.len())` blocks (an
+/// f32 input layer's bias and tanh). On the Cortex-M4F one assembly loop, four lanes
+/// side by side as in [`lstm_cells_f32`] (the same bits).
+#[inline(always)]
+pub fn tanh4_bias_f32(x: &mut [[f32; 4]], bias: &[[f32; 4]]) {
+    let n = x.len().min(bias.len());
+    if n == 0 {
+        return;
+    }
+    #[cfg(fw_dsp_asm)]
+    {
+        // SAFETY: n > 0 blocks of both slices, in bounds by the computation above.
+        unsafe {
+            asm::tanh4_bias_f32(
+                x.as_mut_ptr(),
+                bias.as_ptr(),
+                n,
+                &crate::math::TANH_CONSTANTS,
+            )
+        }
+    }
+    #[cfg(not(fw_dsp_asm))]
+    {
+        portable::tanh4_bias_f32(x, bias)
+    }
+}
+
+/// `h[j][r] *= math::tanh_fast(c[j][r])` for `min(h.len(), c.len())` blocks (an LSTM
+/// layer's `h = o tanh(c)`), lane for lane `math::tanh_fast4`. On the Cortex-M4F one
+/// assembly loop, four lanes side by side as in [`lstm_cells_f32`] (the same bits).
+#[inline(always)]
+pub fn mul_tanh4_f32(h: &mut [[f32; 4]], c: &[[f32; 4]]) {
+    let n = h.len().min(c.len());
+    if n == 0 {
+        return;
+    }
+    #[cfg(fw_dsp_asm)]
+    {
+        // SAFETY: n > 0 blocks of both slices, in bounds by the computation above.
+        unsafe { asm::mul_tanh4_f32(h.as_mut_ptr(), c.as_ptr(), n, &crate::math::TANH_CONSTANTS) }
+    }
+    #[cfg(not(fw_dsp_asm))]
+    {
+        portable::mul_tanh4_f32(h, c)
+    }
+}
+
 /// Whether this build runs the assembly kernels (`cfg(fw_dsp_asm)`), else their portable
 /// twins.
 pub const ASM: bool = cfg!(fw_dsp_asm);
@@ -482,6 +529,25 @@ pub mod portable {
                 crate::math::lstm_gates_fast([a[0] + b[0], a[1] + b[1], a[2] + b[2], a[3] + b[3]]);
             *cj = f * *cj + i * g;
             *hj = o;
+        }
+    }
+
+    /// Portable [`super::tanh4_bias_f32`].
+    #[inline(always)]
+    pub fn tanh4_bias_f32(x: &mut [[f32; 4]], bias: &[[f32; 4]]) {
+        for (e, b) in x.iter_mut().zip(bias) {
+            *e = crate::math::tanh_fast4([e[0] + b[0], e[1] + b[1], e[2] + b[2], e[3] + b[3]]);
+        }
+    }
+
+    /// Portable [`super::mul_tanh4_f32`].
+    #[inline(always)]
+    pub fn mul_tanh4_f32(h: &mut [[f32; 4]], c: &[[f32; 4]]) {
+        for (hs, cs) in h.iter_mut().zip(c) {
+            let t = crate::math::tanh_fast4(*cs);
+            for (h, t) in hs.iter_mut().zip(t) {
+                *h *= t;
+            }
         }
     }
 
@@ -1373,6 +1439,412 @@ mod asm {
         }
     }
 
+    /// The loop of [`super::tanh4_bias_f32`]: per block `x + bias` into s0-s3, then
+    /// [`super::mul_tanh4_f32`]'s tanh steps. `consts`: -log2 e, 0.5, ln 2 high and low
+    /// parts, P0-P4, 1, 9.
+    ///
+    /// # Safety
+    /// `x` valid for `n > 0` blocks (read and written), `bias` for `n` blocks.
+    #[inline(always)]
+    pub unsafe fn tanh4_bias_f32(
+        x: *mut [f32; 4],
+        bias: *const [f32; 4],
+        n: usize,
+        consts: &[f32; 11],
+    ) {
+        // SAFETY (caller: pointers valid as documented): per block the loop reads one
+        // block of `x` and of `bias` and writes that block of `x`; every FPU register
+        // is pushed before and popped after; sp is restored; only declared core
+        // registers and the flags change.
+        unsafe {
+            asm!(
+                "vpush {{d0-d15}}",
+                "vldmia {consts}, {{s20-s30}}",
+                "vmov.f32 s31, #-2.0",
+                "1:",
+                "vldmia {x}, {{s0-s3}}",
+                "vldmia {b}!, {{s4-s7}}",
+                "vadd.f32 s0, s0, s4",
+                "vadd.f32 s1, s1, s5",
+                "vadd.f32 s2, s2, s6",
+                "vadd.f32 s3, s3, s7",
+                "vabs.f32 s4, s0",
+                "vabs.f32 s5, s1",
+                "vabs.f32 s6, s2",
+                "vabs.f32 s7, s3",
+                "vcmp.f32 s4, s30",
+                "vmrs APSR_nzcv, fpscr",
+                "it gt",
+                "vmovgt.f32 s4, s30",
+                "vcmp.f32 s5, s30",
+                "vmrs APSR_nzcv, fpscr",
+                "it gt",
+                "vmovgt.f32 s5, s30",
+                "vcmp.f32 s6, s30",
+                "vmrs APSR_nzcv, fpscr",
+                "it gt",
+                "vmovgt.f32 s6, s30",
+                "vcmp.f32 s7, s30",
+                "vmrs APSR_nzcv, fpscr",
+                "it gt",
+                "vmovgt.f32 s7, s30",
+                "vmul.f32 s4, s31, s4",
+                "vmul.f32 s5, s31, s5",
+                "vmul.f32 s6, s31, s6",
+                "vmul.f32 s7, s31, s7",
+                "vmul.f32 s8, s4, s20",
+                "vmul.f32 s9, s5, s20",
+                "vmul.f32 s10, s6, s20",
+                "vmul.f32 s11, s7, s20",
+                "vadd.f32 s8, s8, s21",
+                "vadd.f32 s9, s9, s21",
+                "vadd.f32 s10, s10, s21",
+                "vadd.f32 s11, s11, s21",
+                "vcvt.s32.f32 s8, s8",
+                "vcvt.s32.f32 s9, s9",
+                "vcvt.s32.f32 s10, s10",
+                "vcvt.s32.f32 s11, s11",
+                "vmov {k0}, s8",
+                "vmov {k1}, s9",
+                "vmov {k2}, s10",
+                "vmov {k3}, s11",
+                "vcvt.f32.s32 s8, s8",
+                "vcvt.f32.s32 s9, s9",
+                "vcvt.f32.s32 s10, s10",
+                "vcvt.f32.s32 s11, s11",
+                "vmul.f32 s12, s8, s22",
+                "vmul.f32 s13, s9, s22",
+                "vmul.f32 s14, s10, s22",
+                "vmul.f32 s15, s11, s22",
+                "vmul.f32 s8, s8, s23",
+                "vmul.f32 s9, s9, s23",
+                "vmul.f32 s10, s10, s23",
+                "vmul.f32 s11, s11, s23",
+                "vadd.f32 s4, s4, s12",
+                "vadd.f32 s5, s5, s13",
+                "vadd.f32 s6, s6, s14",
+                "vadd.f32 s7, s7, s15",
+                "vadd.f32 s4, s4, s8",
+                "vadd.f32 s5, s5, s9",
+                "vadd.f32 s6, s6, s10",
+                "vadd.f32 s7, s7, s11",
+                "vmul.f32 s12, s4, s4",
+                "vmul.f32 s13, s5, s5",
+                "vmul.f32 s14, s6, s6",
+                "vmul.f32 s15, s7, s7",
+                "vmul.f32 s16, s24, s4",
+                "vmul.f32 s17, s24, s5",
+                "vmul.f32 s18, s24, s6",
+                "vmul.f32 s19, s24, s7",
+                "vadd.f32 s16, s16, s25",
+                "vadd.f32 s17, s17, s25",
+                "vadd.f32 s18, s18, s25",
+                "vadd.f32 s19, s19, s25",
+                "vmul.f32 s16, s16, s4",
+                "vmul.f32 s17, s17, s5",
+                "vmul.f32 s18, s18, s6",
+                "vmul.f32 s19, s19, s7",
+                "vadd.f32 s16, s16, s26",
+                "vadd.f32 s17, s17, s26",
+                "vadd.f32 s18, s18, s26",
+                "vadd.f32 s19, s19, s26",
+                "vmul.f32 s16, s16, s4",
+                "vmul.f32 s17, s17, s5",
+                "vmul.f32 s18, s18, s6",
+                "vmul.f32 s19, s19, s7",
+                "vadd.f32 s16, s16, s27",
+                "vadd.f32 s17, s17, s27",
+                "vadd.f32 s18, s18, s27",
+                "vadd.f32 s19, s19, s27",
+                "vmul.f32 s16, s16, s4",
+                "vmul.f32 s17, s17, s5",
+                "vmul.f32 s18, s18, s6",
+                "vmul.f32 s19, s19, s7",
+                "vadd.f32 s16, s16, s28",
+                "vadd.f32 s17, s17, s28",
+                "vadd.f32 s18, s18, s28",
+                "vadd.f32 s19, s19, s28",
+                "vmul.f32 s16, s16, s4",
+                "vmul.f32 s17, s17, s5",
+                "vmul.f32 s18, s18, s6",
+                "vmul.f32 s19, s19, s7",
+                "vadd.f32 s16, s16, s21",
+                "vadd.f32 s17, s17, s21",
+                "vadd.f32 s18, s18, s21",
+                "vadd.f32 s19, s19, s21",
+                "vmul.f32 s16, s16, s12",
+                "vmul.f32 s17, s17, s13",
+                "vmul.f32 s18, s18, s14",
+                "vmul.f32 s19, s19, s15",
+                "vadd.f32 s16, s16, s4",
+                "vadd.f32 s17, s17, s5",
+                "vadd.f32 s18, s18, s6",
+                "vadd.f32 s19, s19, s7",
+                "vadd.f32 s16, s16, s29",
+                "vadd.f32 s17, s17, s29",
+                "vadd.f32 s18, s18, s29",
+                "vadd.f32 s19, s19, s29",
+                "sub {k0}, {e127}, {k0}, lsl #23",
+                "sub {k1}, {e127}, {k1}, lsl #23",
+                "sub {k2}, {e127}, {k2}, lsl #23",
+                "sub {k3}, {e127}, {k3}, lsl #23",
+                "vmov s8, {k0}",
+                "vmov s9, {k1}",
+                "vmov s10, {k2}",
+                "vmov s11, {k3}",
+                "vmul.f32 s16, s16, s8",
+                "vmul.f32 s17, s17, s9",
+                "vmul.f32 s18, s18, s10",
+                "vmul.f32 s19, s19, s11",
+                "vsub.f32 s4, s29, s16",
+                "vsub.f32 s5, s29, s17",
+                "vsub.f32 s6, s29, s18",
+                "vsub.f32 s7, s29, s19",
+                "vadd.f32 s12, s29, s16",
+                "vadd.f32 s13, s29, s17",
+                "vadd.f32 s14, s29, s18",
+                "vadd.f32 s15, s29, s19",
+                "vdiv.f32 s4, s4, s12",
+                "vdiv.f32 s5, s5, s13",
+                "vdiv.f32 s6, s6, s14",
+                "vdiv.f32 s7, s7, s15",
+                "vcmp.f32 s0, #0",
+                "vmrs APSR_nzcv, fpscr",
+                "it mi",
+                "vnegmi.f32 s4, s4",
+                "vcmp.f32 s1, #0",
+                "vmrs APSR_nzcv, fpscr",
+                "it mi",
+                "vnegmi.f32 s5, s5",
+                "vcmp.f32 s2, #0",
+                "vmrs APSR_nzcv, fpscr",
+                "it mi",
+                "vnegmi.f32 s6, s6",
+                "vcmp.f32 s3, #0",
+                "vmrs APSR_nzcv, fpscr",
+                "it mi",
+                "vnegmi.f32 s7, s7",
+                "vstmia {x}!, {{s4-s7}}",
+                "subs {n}, {n}, #1",
+                "bne 1b",
+                "vpop {{d0-d15}}",
+                x = inout(reg) x => _,
+                b = inout(reg) bias => _,
+                n = inout(reg) n => _,
+                consts = in(reg) consts.as_ptr(),
+                e127 = in(reg) 0x3f80_0000u32,
+                k0 = out(reg) _,
+                k1 = out(reg) _,
+                k2 = out(reg) _,
+                k3 = out(reg) _,
+            );
+        }
+    }
+
+    /// The loop of [`super::mul_tanh4_f32`]. Registers: s0-s3 `c`, s4-s7 `-2 min(|c|,
+    /// 9)`, then `r`, then `tanh`; s8-s11 `u`, `k`, the scale, then `h`; s12-s15 `hi`,
+    /// `z`, the denominators; s16-s19 the polynomial and `e`; s20-s30 the constants
+    /// (`consts`: -log2 e, 0.5, ln 2 high and low parts, P0-P4, 1, 9), s31 -2. The
+    /// exponential's clamp at -87 is left out: its argument is at least -18 (or NaN).
+    ///
+    /// # Safety
+    /// `h` valid for `n > 0` blocks (read and written), `c` for `n` blocks.
+    #[inline(always)]
+    pub unsafe fn mul_tanh4_f32(
+        h: *mut [f32; 4],
+        c: *const [f32; 4],
+        n: usize,
+        consts: &[f32; 11],
+    ) {
+        // SAFETY (caller: pointers valid as documented): per block the loop reads one
+        // block of `c` and of `h` and writes that block of `h`; every FPU register is
+        // pushed before and popped after; sp is restored; only declared core registers
+        // and the flags change.
+        unsafe {
+            asm!(
+                "vpush {{d0-d15}}",
+                "vldmia {consts}, {{s20-s30}}",
+                "vmov.f32 s31, #-2.0",
+                "1:",
+                "vldmia {c}!, {{s0-s3}}",
+                "vabs.f32 s4, s0",
+                "vabs.f32 s5, s1",
+                "vabs.f32 s6, s2",
+                "vabs.f32 s7, s3",
+                "vcmp.f32 s4, s30",
+                "vmrs APSR_nzcv, fpscr",
+                "it gt",
+                "vmovgt.f32 s4, s30",
+                "vcmp.f32 s5, s30",
+                "vmrs APSR_nzcv, fpscr",
+                "it gt",
+                "vmovgt.f32 s5, s30",
+                "vcmp.f32 s6, s30",
+                "vmrs APSR_nzcv, fpscr",
+                "it gt",
+                "vmovgt.f32 s6, s30",
+                "vcmp.f32 s7, s30",
+                "vmrs APSR_nzcv, fpscr",
+                "it gt",
+                "vmovgt.f32 s7, s30",
+                "vmul.f32 s4, s31, s4",
+                "vmul.f32 s5, s31, s5",
+                "vmul.f32 s6, s31, s6",
+                "vmul.f32 s7, s31, s7",
+                "vmul.f32 s8, s4, s20",
+                "vmul.f32 s9, s5, s20",
+                "vmul.f32 s10, s6, s20",
+                "vmul.f32 s11, s7, s20",
+                "vadd.f32 s8, s8, s21",
+                "vadd.f32 s9, s9, s21",
+                "vadd.f32 s10, s10, s21",
+                "vadd.f32 s11, s11, s21",
+                "vcvt.s32.f32 s8, s8",
+                "vcvt.s32.f32 s9, s9",
+                "vcvt.s32.f32 s10, s10",
+                "vcvt.s32.f32 s11, s11",
+                "vmov {k0}, s8",
+                "vmov {k1}, s9",
+                "vmov {k2}, s10",
+                "vmov {k3}, s11",
+                "vcvt.f32.s32 s8, s8",
+                "vcvt.f32.s32 s9, s9",
+                "vcvt.f32.s32 s10, s10",
+                "vcvt.f32.s32 s11, s11",
+                "vmul.f32 s12, s8, s22",
+                "vmul.f32 s13, s9, s22",
+                "vmul.f32 s14, s10, s22",
+                "vmul.f32 s15, s11, s22",
+                "vmul.f32 s8, s8, s23",
+                "vmul.f32 s9, s9, s23",
+                "vmul.f32 s10, s10, s23",
+                "vmul.f32 s11, s11, s23",
+                "vadd.f32 s4, s4, s12",
+                "vadd.f32 s5, s5, s13",
+                "vadd.f32 s6, s6, s14",
+                "vadd.f32 s7, s7, s15",
+                "vadd.f32 s4, s4, s8",
+                "vadd.f32 s5, s5, s9",
+                "vadd.f32 s6, s6, s10",
+                "vadd.f32 s7, s7, s11",
+                "vmul.f32 s12, s4, s4",
+                "vmul.f32 s13, s5, s5",
+                "vmul.f32 s14, s6, s6",
+                "vmul.f32 s15, s7, s7",
+                "vmul.f32 s16, s24, s4",
+                "vmul.f32 s17, s24, s5",
+                "vmul.f32 s18, s24, s6",
+                "vmul.f32 s19, s24, s7",
+                "vadd.f32 s16, s16, s25",
+                "vadd.f32 s17, s17, s25",
+                "vadd.f32 s18, s18, s25",
+                "vadd.f32 s19, s19, s25",
+                "vmul.f32 s16, s16, s4",
+                "vmul.f32 s17, s17, s5",
+                "vmul.f32 s18, s18, s6",
+                "vmul.f32 s19, s19, s7",
+                "vadd.f32 s16, s16, s26",
+                "vadd.f32 s17, s17, s26",
+                "vadd.f32 s18, s18, s26",
+                "vadd.f32 s19, s19, s26",
+                "vmul.f32 s16, s16, s4",
+                "vmul.f32 s17, s17, s5",
+                "vmul.f32 s18, s18, s6",
+                "vmul.f32 s19, s19, s7",
+                "vadd.f32 s16, s16, s27",
+                "vadd.f32 s17, s17, s27",
+                "vadd.f32 s18, s18, s27",
+                "vadd.f32 s19, s19, s27",
+                "vmul.f32 s16, s16, s4",
+                "vmul.f32 s17, s17, s5",
+                "vmul.f32 s18, s18, s6",
+                "vmul.f32 s19, s19, s7",
+                "vadd.f32 s16, s16, s28",
+                "vadd.f32 s17, s17, s28",
+                "vadd.f32 s18, s18, s28",
+                "vadd.f32 s19, s19, s28",
+                "vmul.f32 s16, s16, s4",
+                "vmul.f32 s17, s17, s5",
+                "vmul.f32 s18, s18, s6",
+                "vmul.f32 s19, s19, s7",
+                "vadd.f32 s16, s16, s21",
+                "vadd.f32 s17, s17, s21",
+                "vadd.f32 s18, s18, s21",
+                "vadd.f32 s19, s19, s21",
+                "vmul.f32 s16, s16, s12",
+                "vmul.f32 s17, s17, s13",
+                "vmul.f32 s18, s18, s14",
+                "vmul.f32 s19, s19, s15",
+                "vadd.f32 s16, s16, s4",
+                "vadd.f32 s17, s17, s5",
+                "vadd.f32 s18, s18, s6",
+                "vadd.f32 s19, s19, s7",
+                "vadd.f32 s16, s16, s29",
+                "vadd.f32 s17, s17, s29",
+                "vadd.f32 s18, s18, s29",
+                "vadd.f32 s19, s19, s29",
+                "sub {k0}, {e127}, {k0}, lsl #23",
+                "sub {k1}, {e127}, {k1}, lsl #23",
+                "sub {k2}, {e127}, {k2}, lsl #23",
+                "sub {k3}, {e127}, {k3}, lsl #23",
+                "vmov s8, {k0}",
+                "vmov s9, {k1}",
+                "vmov s10, {k2}",
+                "vmov s11, {k3}",
+                "vmul.f32 s16, s16, s8",
+                "vmul.f32 s17, s17, s9",
+                "vmul.f32 s18, s18, s10",
+                "vmul.f32 s19, s19, s11",
+                "vsub.f32 s4, s29, s16",
+                "vsub.f32 s5, s29, s17",
+                "vsub.f32 s6, s29, s18",
+                "vsub.f32 s7, s29, s19",
+                "vadd.f32 s12, s29, s16",
+                "vadd.f32 s13, s29, s17",
+                "vadd.f32 s14, s29, s18",
+                "vadd.f32 s15, s29, s19",
+                "vdiv.f32 s4, s4, s12",
+                "vdiv.f32 s5, s5, s13",
+                "vdiv.f32 s6, s6, s14",
+                "vdiv.f32 s7, s7, s15",
+                "vcmp.f32 s0, #0",
+                "vmrs APSR_nzcv, fpscr",
+                "it mi",
+                "vnegmi.f32 s4, s4",
+                "vcmp.f32 s1, #0",
+                "vmrs APSR_nzcv, fpscr",
+                "it mi",
+                "vnegmi.f32 s5, s5",
+                "vcmp.f32 s2, #0",
+                "vmrs APSR_nzcv, fpscr",
+                "it mi",
+                "vnegmi.f32 s6, s6",
+                "vcmp.f32 s3, #0",
+                "vmrs APSR_nzcv, fpscr",
+                "it mi",
+                "vnegmi.f32 s7, s7",
+                "vldmia {h}, {{s8-s11}}",
+                "vmul.f32 s8, s8, s4",
+                "vmul.f32 s9, s9, s5",
+                "vmul.f32 s10, s10, s6",
+                "vmul.f32 s11, s11, s7",
+                "vstmia {h}!, {{s8-s11}}",
+                "subs {n}, {n}, #1",
+                "bne 1b",
+                "vpop {{d0-d15}}",
+                h = inout(reg) h => _,
+                c = inout(reg) c => _,
+                n = inout(reg) n => _,
+                consts = in(reg) consts.as_ptr(),
+                e127 = in(reg) 0x3f80_0000u32,
+                k0 = out(reg) _,
+                k1 = out(reg) _,
+                k2 = out(reg) _,
+                k3 = out(reg) _,
+            );
+        }
+    }
+
     /// One quad of a 4-row block of [`lstm_small_i16`] (input words in `$sa`, `$sb`):
     /// one LDM of its 8 weight words from lr, 8 SMLAD into r0-r3.
     macro_rules! small_quad_macs {
@@ -1917,6 +2389,48 @@ mod tests {
         let mut h2 = [2.0f32; 3];
         lstm_cells_f32(&acc[..2], &bias, &mut c2, &mut h2);
         assert_eq!((c2[2], h2[2]), (1.0, 2.0));
+    }
+
+    #[test]
+    fn the_tanh_layers_are_tanh_fast_lane_for_lane() {
+        let v = [
+            -30.0f32,
+            -9.5,
+            -1.0,
+            -0.0,
+            0.0,
+            1e-6,
+            0.3,
+            8.9,
+            12.0,
+            f32::INFINITY,
+            f32::NAN,
+        ];
+        let x: [[f32; 4]; 7] =
+            core::array::from_fn(|j| core::array::from_fn(|r| v[(3 * j + r) % v.len()]));
+        let b: [[f32; 4]; 7] = core::array::from_fn(|j| {
+            core::array::from_fn(|r| unit(word((9 * j + r) as u32)) - 0.5)
+        });
+        let mut t = x;
+        tanh4_bias_f32(&mut t, &b);
+        let mut m = b;
+        mul_tanh4_f32(&mut m, &x);
+        for j in 0..7 {
+            for r in 0..4 {
+                let want_t = crate::math::tanh_fast(x[j][r] + b[j][r]);
+                assert_eq!(
+                    t[j][r].to_bits(),
+                    want_t.to_bits(),
+                    "tanh block {j} lane {r}"
+                );
+                let want_m = b[j][r] * crate::math::tanh_fast(x[j][r]);
+                assert_eq!(
+                    m[j][r].to_bits(),
+                    want_m.to_bits(),
+                    "mul block {j} lane {r}"
+                );
+            }
+        }
     }
 
     #[test]

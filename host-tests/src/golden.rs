@@ -90,13 +90,19 @@ pub fn host_dot() -> Vec<Record> {
 }
 
 /// The host's computation of the `cells` suite: the new cell state (`c`) and `o`
-/// (`h`) of each cell, index and input = the cell.
+/// (`h`) of each cell, index and input = the cell; `tanh(acc + bias)` (`t`) and
+/// `bias * tanh(acc)` (`m`) of each of its four lanes, index and input = 4 cells + lane.
 pub fn host_cells() -> Vec<Record> {
-    let (c, h) = golden::cells_output();
-    let mut out = Vec::with_capacity(2 * golden::CELL_CASES);
+    let (c, h, t, m) = golden::cells_output();
+    let mut out = Vec::with_capacity(10 * golden::CELL_CASES);
     for j in 0..golden::CELL_CASES {
         out.push(Record::new("c", j, j as u32, c[j].to_bits()));
         out.push(Record::new("h", j, j as u32, h[j].to_bits()));
+        for r in 0..4 {
+            let k = 4 * j + r;
+            out.push(Record::new("t", k, k as u32, t[j][r].to_bits()));
+            out.push(Record::new("m", k, k as u32, m[j][r].to_bits()));
+        }
     }
     out
 }

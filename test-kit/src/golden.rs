@@ -121,7 +121,7 @@ pub fn dot_output(case: usize) -> f32 {
 }
 
 /// Cells of the `cells` suite (`firmware::dsp::lstm_cells_f32`, the f32 LSTM's gate
-/// activations and cell update).
+/// activations and cell update; `tanh4_bias_f32` and `mul_tanh4_f32`, its tanh layers).
 pub const CELL_CASES: usize = 512;
 
 /// Gate sums, bias and cell state of the `cells` suite: sums over the activations'
@@ -144,9 +144,16 @@ pub fn cell_case(j: usize) -> ([f32; 4], [f32; 4], f32) {
     (acc, bias, 4.0 * unit(hash(j as u32 ^ 0xc311)) - 2.0)
 }
 
-/// New cell state and `o` of every cell of the `cells` suite, in one call of
-/// `firmware::dsp::lstm_cells_f32`.
-pub fn cells_output() -> ([f32; CELL_CASES], [f32; CELL_CASES]) {
+/// Of every cell of the `cells` suite: the new cell state and `o` (one call of
+/// `firmware::dsp::lstm_cells_f32`), `tanh(acc + bias)` of its four sums (one call of
+/// `tanh4_bias_f32`) and `bias * tanh(acc)` (one call of `mul_tanh4_f32`).
+#[allow(clippy::type_complexity)]
+pub fn cells_output() -> (
+    [f32; CELL_CASES],
+    [f32; CELL_CASES],
+    [[f32; 4]; CELL_CASES],
+    [[f32; 4]; CELL_CASES],
+) {
     let mut acc = [[0.0f32; 4]; CELL_CASES];
     let mut bias = [[0.0f32; 4]; CELL_CASES];
     let mut c = [0.0f32; CELL_CASES];
@@ -155,7 +162,11 @@ pub fn cells_output() -> ([f32; CELL_CASES], [f32; CELL_CASES]) {
     }
     let mut h = [0.0f32; CELL_CASES];
     firmware::dsp::lstm_cells_f32(&acc, &bias, &mut c, &mut h);
-    (c, h)
+    let mut t = acc;
+    firmware::dsp::tanh4_bias_f32(&mut t, &bias);
+    let mut m = bias;
+    firmware::dsp::mul_tanh4_f32(&mut m, &acc);
+    (c, h, t, m)
 }
 
 /// Number of dynamics golden cases (one record per joint torque each).

@@ -615,10 +615,12 @@ impl F32View<'_> {
         let (z4, _) = z.as_chunks_mut::<4>();
         let e4 = z4.get_mut(..d.embed_blocks).unwrap_or_default();
         dsp::matvec4_f32(e4, self.w_in, xn);
-        let linear = self.input_activation.is_linear();
-        for (e, b) in e4.iter_mut().zip(self.b_in) {
-            let v = [e[0] + b[0], e[1] + b[1], e[2] + b[2], e[3] + b[3]];
-            *e = if linear { v } else { math::tanh_fast4(v) };
+        if self.input_activation.is_linear() {
+            for (e, b) in e4.iter_mut().zip(self.b_in) {
+                *e = [e[0] + b[0], e[1] + b[1], e[2] + b[2], e[3] + b[3]];
+            }
+        } else {
+            dsp::tanh4_bias_f32(e4, self.b_in);
         }
         // LSTM gates: the whole layer in one kernel call per part of the gate matrix
         // (each block only reads its own rows), then the cells.
@@ -636,12 +638,7 @@ impl F32View<'_> {
         dsp::lstm_cells_f32(acc, self.b_gates, c, h_new);
         let (c4, c_rest) = c.as_chunks::<4>();
         let (h4, h_rest) = h_new.as_chunks_mut::<4>();
-        for (cs, hs) in c4.iter().zip(h4.iter_mut()) {
-            let t = math::tanh_fast4(*cs);
-            for (h, t) in hs.iter_mut().zip(t) {
-                *h *= t;
-            }
-        }
+        dsp::mul_tanh4_f32(h4, c4);
         for (cj, hn) in c_rest.iter().zip(h_rest.iter_mut()) {
             *hn *= math::tanh_fast(*cj);
         }
