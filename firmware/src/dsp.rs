@@ -250,7 +250,7 @@ pub fn matvec4_f32_parts(out: &mut [[f32; 4]], parts: [&[[f32; 4]]; 3], x: &[f32
     {
         let table: [[usize; 2]; 3] =
             core::array::from_fn(|i| [parts[i].as_ptr() as usize, blocks[i]]);
-        if blocks == [0; 3] {
+        if blocks.iter().all(|&b| b == 0) {
             return;
         }
         // SAFETY: 3 table entries, each with blocks[i] blocks of n > 0 columns of

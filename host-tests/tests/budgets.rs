@@ -15,7 +15,7 @@ use host_tests::budget::{self, Budgets, Options};
 ///   SRAM; the exporter puts 35 of its 64 gate blocks in SRAM and 12 in CCM SRAM, and
 ///   the 39 544 B that stream from flash cost more than the limit leaves beside the
 ///   zero-wait compute ("What remains over, and why" in host-tests/README.md).
-const KNOWN_CHIP_OVERRUNS: [(&str, u64); 1] = [("lstm_paper_f32", 154_141)];
+const KNOWN_CHIP_OVERRUNS: [(&str, u64); 1] = [("lstm_paper_f32", 154_003)];
 
 #[test]
 fn firmware_fits_its_budgets_and_lowered_budgets_fail() {
