@@ -1,4 +1,4 @@
-//! Links with the board's own memory layout (`board/memory.x`: 510 KiB image, the
+//! Links with the board's own memory layout (`board/memory.x`: 508 KiB image, the
 //! configuration page, CCM SRAM and its `.ccmram_text` section), so that both builds
 //! place code and data alike.
 fn main() {

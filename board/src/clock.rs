@@ -11,6 +11,15 @@ pub const CORE_CLOCK_HZ: u32 = 170_000_000;
 /// Flash wait states at 170 MHz in range-1 boost mode (RM0440 §3.3.3).
 pub const FLASH_WAIT_STATES: u8 = 4;
 
+/// Whether the flash is in single-bank mode (option bit DBANK = 0): 128-bit reads and
+/// 4 KiB pages, the organisation the cycle budget assumes (`host-tests`: a weight read
+/// from flash costs half the wait of the factory dual-bank mode's 64-bit reads). An
+/// option byte, set when the board is provisioned (board README), not by the firmware:
+/// changing it reorganises the flash, which must then be erased and written again.
+pub fn flash_single_bank(flash: &pac::FLASH) -> bool {
+    flash.optr().read().dbank().bit_is_clear()
+}
+
 /// Boost mode, flash at [`FLASH_WAIT_STATES`] with prefetch, instruction and data
 /// caches on, then HSI16 / 4 x 85 / 2 = 170 MHz through the PLL (switched through
 /// AHB / 2, the reference manual's boost-mode sequence). Whether every step

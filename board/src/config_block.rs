@@ -1,5 +1,6 @@
-//! The per-board configuration block: the last 2 KiB flash page (`BOARD_CONFIG` in
-//! `memory.x`, outside the image, so flashing new firmware keeps it), read at
+//! The per-board configuration block: the last 2 KiB of flash (`BOARD_CONFIG` in
+//! `memory.x`, in the last 4 KiB page of the single-bank flash, which the image never
+//! covers, so flashing new firmware keeps it), read at
 //! start-up; its layout and the decision are `firmware::control::startup`.
 //! (`unsafe`: the read of the page through its linker-script address.)
 

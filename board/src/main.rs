@@ -149,6 +149,11 @@ mod app {
 
         // 170 MHz: boost mode, 4 flash wait states, HSI16 / 4 * 85 / 2.
         let _ = clock::boost_170_mhz(&dp.RCC, &dp.PWR, &dp.FLASH);
+        if !clock::flash_single_bank(&dp.FLASH) {
+            firmware::fw_warn!(
+                "flash in dual-bank mode (DBANK = 1): weights read from flash take twice the budgeted wait; provision DBANK = 0"
+            );
+        }
         let session = session::draw(&dp.RCC, &dp.RNG);
         pins::init(&dp.RCC, &dp.GPIOA, &dp.GPIOB);
         let mut pwm = Pwm::init(&dp.RCC, dp.TIM1, PWM_ARR);

@@ -6,8 +6,9 @@
 //! [`matvec4_f32`]) run every 4-row block of a layer in one call: 1.34 estimated cycles
 //! per MAC in the int16 loop (LDRD + 2 LDM + 8 SMLAD per quad, 8 quads per iteration),
 //! about 1.6 in the int8 loop (LDM + 2 LDR + 8 SXTB16 + 8 SMLAD per quad, 2 quads per
-//! iteration), 3.44 in the f32 loop (VLDM of 8 inputs and 2 x 16 weights, VMUL + VADD,
-//! 8 columns per iteration); the single-block kernels ([`dot4_i16`], [`dot4_i8`],
+//! iteration), 3.25 in the f32 loop (two blocks at a time: VLDM of 8 inputs and 4 x 16
+//! weights, in-place VMUL + VADD, 8 columns per iteration); the single-block kernels
+//! ([`dot4_i16`], [`dot4_i8`],
 //! [`dot4_f32`])
 //! serve the small layers. [`lstm_small_i16`] runs a small int16 network's input
 //! layer, gates and cell updates in one unrolled block with `[e; h]` held in FPU
@@ -15,7 +16,7 @@
 //! keeps the bits of the plain Rust sum (and the M4 takes 3 cycles for VMLA against 2
 //! for VMUL + VADD only when the VADD does not read the VMUL's result in the next
 //! instruction: the FPU's one-cycle result stall, which the f32 kernels avoid by
-//! issuing a column's VMULs before its VADDs). Every kernel has a portable twin in plain Rust with the same wrapping
+//! placing each VADD two instructions after the VMUL it reads). Every kernel has a portable twin in plain Rust with the same wrapping
 //! (integer) or rounding (f32) semantics; the host (and any target without the DSP
 //! extension) runs the twin, the Cortex-M4 the assembly, the twin tests here check
 //! the kernels against their definitions, and the QEMU golden suites (`host-tests`)
@@ -218,85 +219,136 @@ pub fn matvec4_i8(acc: &mut [[i32; 4]], bias: &[[i32; 4]], w: &[[u32; 4]], x: &[
 /// w[b * N..(b + 1) * N], x)` with `N = x.len()` columns (each row summed left to
 /// right from +0.0, separate multiply and add: the bits of [`dot4_f32`]);
 /// `min(out.len(), w.len() / N)` blocks (all of `out` is zero when `N == 0`).
-/// On the Cortex-M4F: 8 columns per iteration (VLDM of 8 inputs, two VLDM of 16
-/// weights, VMUL + VADD), the FPU registers saved once per layer.
+/// On the Cortex-M4F: two blocks (8 rows) at a time, 8 columns per iteration (VLDM
+/// of 8 inputs, four VLDM of 16 weights, in-place VMUL + VADD), the FPU registers
+/// saved once per layer.
 #[inline(always)]
 pub fn matvec4_f32(out: &mut [[f32; 4]], w: &[[f32; 4]], x: &[f32]) {
+    matvec4_f32_parts(out, [w, &[], &[]], x);
+}
+
+/// [`matvec4_f32`] over a layer whose blocks are stored in up to three parts (e.g.
+/// the first in SRAM, the next in CCM SRAM, the rest in flash): `out[b]` from the
+/// blocks of `parts[0]`, then of `parts[1]`, then of `parts[2]`, the same bits as one
+/// layer; each part contributes `len / N` blocks, as many as `out` still takes. One
+/// assembly block for all parts (switching parts costs a few cycles per layer, not
+/// per block); a part's blocks run two at a time, an odd last one alone.
+#[inline(always)]
+pub fn matvec4_f32_parts(out: &mut [[f32; 4]], parts: [&[[f32; 4]]; 3], x: &[f32]) {
     let n = x.len();
     if n == 0 {
         out.fill([0.0; 4]);
         return;
     }
-    let blocks = out.len().min(w.len() / n);
-    if blocks == 0 {
-        return;
-    }
+    let mut left = out.len();
+    let blocks = parts.map(|p| {
+        let b = left.min(p.len() / n);
+        left -= b;
+        b
+    });
     #[cfg(fw_dsp_asm)]
     {
-        // SAFETY: blocks > 0 blocks of n > 0 columns of `w`, n values of `x`, blocks
-        // outputs, all in bounds by the computation above; no second part.
-        unsafe {
-            asm::matvec4_f32(
-                out.as_mut_ptr(),
-                w.as_ptr(),
-                blocks,
-                w.as_ptr(),
-                0,
-                x.as_ptr(),
-                n,
-            )
+        let table: [[usize; 2]; 3] =
+            core::array::from_fn(|i| [parts[i].as_ptr() as usize, blocks[i]]);
+        if blocks.iter().all(|&b| b == 0) {
+            return;
         }
+        // SAFETY: 3 table entries, each with blocks[i] blocks of n > 0 columns of
+        // parts[i] (in bounds by the computation above), n values of `x`, and the
+        // sum of the blocks <= out.len() outputs.
+        unsafe { asm::matvec4_f32(out.as_mut_ptr(), table.as_ptr(), 3, x.as_ptr(), n) }
     }
     #[cfg(not(fw_dsp_asm))]
     {
-        portable::matvec4_f32(&mut out[..blocks], w, x)
+        let mut rest = &mut out[..];
+        for (p, b) in parts.iter().zip(blocks) {
+            let (now, later) = rest.split_at_mut(b);
+            portable::matvec4_f32(now, p, x);
+            rest = later;
+        }
     }
 }
 
-/// [`matvec4_f32`] over a layer whose blocks are stored in two parts (`head`: the first
-/// blocks, `tail`: the rest, e.g. one in SRAM and one in flash): `out[b]` from block
-/// `b` of `head` and then of `tail`, the same bits as one layer; `min(out.len(),
-/// head.len() / N + tail.len() / N)` blocks. One assembly block for both parts (the
-/// switch from one to the other costs a few cycles per layer, not per block).
+/// The cell updates of an f32 LSTM layer: for each cell `j`, the gates `x = acc[j] +
+/// bias[j]` (rows i, f, g, o) through [`math::lstm_gates_fast`], then `c[j] = f c[j] +
+/// i g` and `h[j] = o` (the caller multiplies `h` by `tanh(c)`), over `min(acc.len(),
+/// bias.len(), c.len(), h.len())` cells. On the Cortex-M4F one assembly loop computes
+/// each cell's four exponentials side by side, one operation across the four lanes at
+/// a time (the same operations in the same order per lane, so the same bits; no
+/// instruction reads the VADD/VMUL right before it), the FPU registers saved once.
+///
+/// [`math::lstm_gates_fast`]: crate::math::lstm_gates_fast
 #[inline(always)]
-pub fn matvec4_f32_parts(out: &mut [[f32; 4]], head: &[[f32; 4]], tail: &[[f32; 4]], x: &[f32]) {
-    let n = x.len();
+pub fn lstm_cells_f32(acc: &[[f32; 4]], bias: &[[f32; 4]], c: &mut [f32], h: &mut [f32]) {
+    let n = acc.len().min(bias.len()).min(c.len()).min(h.len());
     if n == 0 {
-        out.fill([0.0; 4]);
         return;
     }
-    let head_blocks = out.len().min(head.len() / n);
-    let tail_blocks = (out.len() - head_blocks).min(tail.len() / n);
     #[cfg(fw_dsp_asm)]
     {
-        let (first, first_blocks, second, second_blocks) = if head_blocks > 0 {
-            (head, head_blocks, tail, tail_blocks)
-        } else {
-            (tail, tail_blocks, head, 0)
-        };
-        if first_blocks == 0 {
-            return;
-        }
-        // SAFETY: first_blocks > 0 blocks of n > 0 columns of `first`, second_blocks
-        // of `second`, n values of `x`, first_blocks + second_blocks <= out.len()
-        // outputs, all in bounds by the computation above.
+        // SAFETY: n > 0 cells of each of the four slices, in bounds by the computation
+        // above; the constants' table has the 12 values the kernel reads.
         unsafe {
-            asm::matvec4_f32(
-                out.as_mut_ptr(),
-                first.as_ptr(),
-                first_blocks,
-                second.as_ptr(),
-                second_blocks,
-                x.as_ptr(),
+            asm::lstm_cells_f32(
+                acc.as_ptr(),
+                bias.as_ptr(),
+                c.as_mut_ptr(),
+                h.as_mut_ptr(),
                 n,
+                &crate::math::LSTM_CELL_CONSTANTS,
             )
         }
     }
     #[cfg(not(fw_dsp_asm))]
     {
-        let (out_head, out_tail) = out.split_at_mut(head_blocks);
-        portable::matvec4_f32(out_head, head, x);
-        portable::matvec4_f32(&mut out_tail[..tail_blocks], tail, x);
+        portable::lstm_cells_f32(acc, bias, c, h)
+    }
+}
+
+/// `x[j] = math::tanh_fast4(x[j] + bias[j])` for `min(x.len(), bias.len())` blocks (an
+/// f32 input layer's bias and tanh). On the Cortex-M4F one assembly loop, four lanes
+/// side by side as in [`lstm_cells_f32`] (the same bits).
+#[inline(always)]
+pub fn tanh4_bias_f32(x: &mut [[f32; 4]], bias: &[[f32; 4]]) {
+    let n = x.len().min(bias.len());
+    if n == 0 {
+        return;
+    }
+    #[cfg(fw_dsp_asm)]
+    {
+        // SAFETY: n > 0 blocks of both slices, in bounds by the computation above.
+        unsafe {
+            asm::tanh4_bias_f32(
+                x.as_mut_ptr(),
+                bias.as_ptr(),
+                n,
+                &crate::math::TANH_CONSTANTS,
+            )
+        }
+    }
+    #[cfg(not(fw_dsp_asm))]
+    {
+        portable::tanh4_bias_f32(x, bias)
+    }
+}
+
+/// `h[j][r] *= math::tanh_fast(c[j][r])` for `min(h.len(), c.len())` blocks (an LSTM
+/// layer's `h = o tanh(c)`), lane for lane `math::tanh_fast4`. On the Cortex-M4F one
+/// assembly loop, four lanes side by side as in [`lstm_cells_f32`] (the same bits).
+#[inline(always)]
+pub fn mul_tanh4_f32(h: &mut [[f32; 4]], c: &[[f32; 4]]) {
+    let n = h.len().min(c.len());
+    if n == 0 {
+        return;
+    }
+    #[cfg(fw_dsp_asm)]
+    {
+        // SAFETY: n > 0 blocks of both slices, in bounds by the computation above.
+        unsafe { asm::mul_tanh4_f32(h.as_mut_ptr(), c.as_ptr(), n, &crate::math::TANH_CONSTANTS) }
+    }
+    #[cfg(not(fw_dsp_asm))]
+    {
+        portable::mul_tanh4_f32(h, c)
     }
 }
 
@@ -465,6 +517,37 @@ pub mod portable {
         }
         for (o, wb) in out.iter_mut().zip(w.chunks_exact(x.len())) {
             *o = dot4_f32([0.0; 4], wb, x);
+        }
+    }
+
+    /// Portable [`super::lstm_cells_f32`].
+    #[inline(always)]
+    pub fn lstm_cells_f32(acc: &[[f32; 4]], bias: &[[f32; 4]], c: &mut [f32], h: &mut [f32]) {
+        let cells = acc.iter().zip(bias).zip(c.iter_mut()).zip(h.iter_mut());
+        for (((a, b), cj), hj) in cells {
+            let [i, f, g, o] =
+                crate::math::lstm_gates_fast([a[0] + b[0], a[1] + b[1], a[2] + b[2], a[3] + b[3]]);
+            *cj = f * *cj + i * g;
+            *hj = o;
+        }
+    }
+
+    /// Portable [`super::tanh4_bias_f32`].
+    #[inline(always)]
+    pub fn tanh4_bias_f32(x: &mut [[f32; 4]], bias: &[[f32; 4]]) {
+        for (e, b) in x.iter_mut().zip(bias) {
+            *e = crate::math::tanh_fast4([e[0] + b[0], e[1] + b[1], e[2] + b[2], e[3] + b[3]]);
+        }
+    }
+
+    /// Portable [`super::mul_tanh4_f32`].
+    #[inline(always)]
+    pub fn mul_tanh4_f32(h: &mut [[f32; 4]], c: &[[f32; 4]]) {
+        for (hs, cs) in h.iter_mut().zip(c) {
+            let t = crate::math::tanh_fast4(*cs);
+            for (h, t) in hs.iter_mut().zip(t) {
+                *h *= t;
+            }
         }
     }
 
@@ -828,162 +911,936 @@ mod asm {
         }
     }
 
-    /// Four columns of the f32 layer kernel: inputs s4+k, weights s12-s27. Per
-    /// column the four VMUL come before the four VADD, so that no VADD reads the
-    /// result of the instruction right before it (the FPU's one-cycle result stall);
-    /// each accumulator still adds its products in column order.
-    macro_rules! cols4_f32 {
-        ($x0:literal, $x1:literal, $x2:literal, $x3:literal) => {
+    /// Sixteen products of the f32 layer kernel, in place: weights s16-s31 (4 columns
+    /// of one 4-row block, `s16 + 4 j + r` = column `j`, row `r`), inputs `$x0..$x3`,
+    /// accumulators `$a0..$a3` (rows 0-3). Each VMUL overwrites its weight with the
+    /// product; each VADD comes two instructions after the VMUL it reads (the FPU's
+    /// one-cycle result stall falls on the instruction right after a VMUL), and each
+    /// accumulator adds its products in column order.
+    macro_rules! products16_f32 {
+        ($x0:literal, $x1:literal, $x2:literal, $x3:literal, $a0:literal, $a1:literal, $a2:literal, $a3:literal) => {
             concat!(
-                "vmul.f32 s28, s12, ",
+                "vmul.f32 s16, s16, ",
                 $x0,
                 "\n",
-                "vmul.f32 s29, s13, ",
+                "vmul.f32 s17, s17, ",
                 $x0,
                 "\n",
-                "vmul.f32 s30, s14, ",
+                "vadd.f32 ",
+                $a0,
+                ", ",
+                $a0,
+                ", s16\n",
+                "vmul.f32 s18, s18, ",
                 $x0,
                 "\n",
-                "vmul.f32 s31, s15, ",
+                "vadd.f32 ",
+                $a1,
+                ", ",
+                $a1,
+                ", s17\n",
+                "vmul.f32 s19, s19, ",
                 $x0,
                 "\n",
-                "vadd.f32 s0, s0, s28\n",
-                "vadd.f32 s1, s1, s29\n",
-                "vadd.f32 s2, s2, s30\n",
-                "vadd.f32 s3, s3, s31\n",
-                "vmul.f32 s28, s16, ",
+                "vadd.f32 ",
+                $a2,
+                ", ",
+                $a2,
+                ", s18\n",
+                "vmul.f32 s20, s20, ",
                 $x1,
                 "\n",
-                "vmul.f32 s29, s17, ",
+                "vadd.f32 ",
+                $a3,
+                ", ",
+                $a3,
+                ", s19\n",
+                "vmul.f32 s21, s21, ",
                 $x1,
                 "\n",
-                "vmul.f32 s30, s18, ",
+                "vadd.f32 ",
+                $a0,
+                ", ",
+                $a0,
+                ", s20\n",
+                "vmul.f32 s22, s22, ",
                 $x1,
                 "\n",
-                "vmul.f32 s31, s19, ",
+                "vadd.f32 ",
+                $a1,
+                ", ",
+                $a1,
+                ", s21\n",
+                "vmul.f32 s23, s23, ",
                 $x1,
                 "\n",
-                "vadd.f32 s0, s0, s28\n",
-                "vadd.f32 s1, s1, s29\n",
-                "vadd.f32 s2, s2, s30\n",
-                "vadd.f32 s3, s3, s31\n",
-                "vmul.f32 s28, s20, ",
+                "vadd.f32 ",
+                $a2,
+                ", ",
+                $a2,
+                ", s22\n",
+                "vmul.f32 s24, s24, ",
                 $x2,
                 "\n",
-                "vmul.f32 s29, s21, ",
+                "vadd.f32 ",
+                $a3,
+                ", ",
+                $a3,
+                ", s23\n",
+                "vmul.f32 s25, s25, ",
                 $x2,
                 "\n",
-                "vmul.f32 s30, s22, ",
+                "vadd.f32 ",
+                $a0,
+                ", ",
+                $a0,
+                ", s24\n",
+                "vmul.f32 s26, s26, ",
                 $x2,
                 "\n",
-                "vmul.f32 s31, s23, ",
+                "vadd.f32 ",
+                $a1,
+                ", ",
+                $a1,
+                ", s25\n",
+                "vmul.f32 s27, s27, ",
                 $x2,
                 "\n",
-                "vadd.f32 s0, s0, s28\n",
-                "vadd.f32 s1, s1, s29\n",
-                "vadd.f32 s2, s2, s30\n",
-                "vadd.f32 s3, s3, s31\n",
-                "vmul.f32 s28, s24, ",
+                "vadd.f32 ",
+                $a2,
+                ", ",
+                $a2,
+                ", s26\n",
+                "vmul.f32 s28, s28, ",
                 $x3,
                 "\n",
-                "vmul.f32 s29, s25, ",
+                "vadd.f32 ",
+                $a3,
+                ", ",
+                $a3,
+                ", s27\n",
+                "vmul.f32 s29, s29, ",
                 $x3,
                 "\n",
-                "vmul.f32 s30, s26, ",
+                "vadd.f32 ",
+                $a0,
+                ", ",
+                $a0,
+                ", s28\n",
+                "vmul.f32 s30, s30, ",
                 $x3,
                 "\n",
-                "vmul.f32 s31, s27, ",
+                "vadd.f32 ",
+                $a1,
+                ", ",
+                $a1,
+                ", s29\n",
+                "vmul.f32 s31, s31, ",
                 $x3,
                 "\n",
-                "vadd.f32 s0, s0, s28\n",
-                "vadd.f32 s1, s1, s29\n",
-                "vadd.f32 s2, s2, s30\n",
-                "vadd.f32 s3, s3, s31\n",
+                "vadd.f32 ",
+                $a2,
+                ", ",
+                $a2,
+                ", s30\n",
+                "vadd.f32 ",
+                $a3,
+                ", ",
+                $a3,
+                ", s31\n",
             )
         };
     }
 
-    /// The f32 layer: per block, accumulators s0-s3 from +0.0, `n / 8` iterations
-    /// of 8 columns (VLDM of 8 inputs into s4-s11, two VLDM of 16 weights into
-    /// s12-s27, products in s28-s31), then `n % 8` single columns; VSTM of s0-s3.
-    /// The blocks come from two parts: `blocks` of `w`, then `blocks2` of `w2` (the
-    /// weight pointer and the count switch once, after the first part). All 32 FPU
-    /// registers are saved and restored inside the block (VPUSH/VPOP of d0-d15, once
-    /// per layer).
+    /// One column of the f32 layer kernel for a pair of blocks: input s8, weights
+    /// s16-s19 (first block) and s20-s23 (second), accumulators s0-s3 and s4-s7;
+    /// VMUL in place, each VADD two instructions after the VMUL it reads.
+    macro_rules! column8_f32 {
+        () => {
+            concat!(
+                "vmul.f32 s16, s16, s8\n",
+                "vmul.f32 s17, s17, s8\n",
+                "vadd.f32 s0, s0, s16\n",
+                "vmul.f32 s18, s18, s8\n",
+                "vadd.f32 s1, s1, s17\n",
+                "vmul.f32 s19, s19, s8\n",
+                "vadd.f32 s2, s2, s18\n",
+                "vmul.f32 s20, s20, s8\n",
+                "vadd.f32 s3, s3, s19\n",
+                "vmul.f32 s21, s21, s8\n",
+                "vadd.f32 s4, s4, s20\n",
+                "vmul.f32 s22, s22, s8\n",
+                "vadd.f32 s5, s5, s21\n",
+                "vmul.f32 s23, s23, s8\n",
+                "vadd.f32 s6, s6, s22\n",
+                "vadd.f32 s7, s7, s23\n",
+            )
+        };
+    }
+
+    /// One column of the f32 layer kernel for a single block: input s8, weights
+    /// s16-s19, accumulators s0-s3; VMUL in place, each VADD two instructions after
+    /// the VMUL it reads.
+    macro_rules! column4_f32 {
+        () => {
+            concat!(
+                "vmul.f32 s16, s16, s8\n",
+                "vmul.f32 s17, s17, s8\n",
+                "vadd.f32 s0, s0, s16\n",
+                "vmul.f32 s18, s18, s8\n",
+                "vadd.f32 s1, s1, s17\n",
+                "vmul.f32 s19, s19, s8\n",
+                "vadd.f32 s2, s2, s18\n",
+                "vadd.f32 s3, s3, s19\n",
+            )
+        };
+    }
+
+    /// The f32 layer: the blocks of each part, two at a time (8 rows sharing every
+    /// input load: accumulators s0-s7 from +0.0), `n / 8` iterations of 8 columns
+    /// (VLDM of 8 inputs into s8-s15, then per block and 4 columns one VLDM of 16
+    /// weights into s16-s31 and 16 in-place VMUL + 16 VADD), then `n % 8` single
+    /// columns; VSTM of s0-s7. A part's odd last block runs alone (the same loops
+    /// over one block, accumulators s0-s3). `parts` holds `nparts` entries
+    /// `[weights address, blocks]`, run in order. All 32 FPU registers are saved and
+    /// restored inside the block (VPUSH/VPOP of d0-d15, once per layer).
     ///
     /// # Safety
-    /// `out` valid for `blocks + blocks2` blocks (written), `blocks > 0`, `w` for
-    /// `blocks * n` columns, `w2` for `blocks2 * n`, `x` for `n > 0` values.
-    #[inline(always)]
+    /// `parts` valid for `nparts > 0` entries, each weight address valid for its
+    /// `blocks * n` columns; `out` valid for the sum of the blocks (written); `x` for
+    /// `n > 0` values.
+    ///
+    /// One copy for every f32 layer of the image (not inlined: it is the biggest
+    /// kernel, and on the board it runs from CCM SRAM, whose bytes the exporter also
+    /// gives to model data).
+    #[inline(never)]
+    #[cfg_attr(target_os = "none", unsafe(link_section = ".ccmram_text"))]
     pub unsafe fn matvec4_f32(
         out: *mut [f32; 4],
-        w: *const [f32; 4],
-        blocks: usize,
-        w2: *const [f32; 4],
-        blocks2: usize,
+        parts: *const [usize; 2],
+        nparts: usize,
         x: *const f32,
         n: usize,
     ) {
-        // SAFETY (caller: pointers valid as documented): per block the loops read n
-        // values of `x` and n columns of `w` or `w2` (each advances block after block)
-        // and write one `[f32; 4]` of `out`; every FPU register is pushed before and
-        // popped after; sp is restored; only declared core registers and the flags
-        // change.
+        // SAFETY (caller: pointers valid as documented): per block pair the loops read
+        // n values of `x` and n columns of each of the two blocks (the second pointer
+        // starts n columns after the first) and write two `[f32; 4]` of `out`; an odd
+        // last block reads its own n columns and writes one; every FPU register is
+        // pushed before and popped after; sp is restored; only declared core registers
+        // and the flags change.
         unsafe {
             asm!(
                 "vpush {{d0-d15}}",
+                // Next part: its weights and block count.
+                "1:",
+                "ldr {wp}, [{tbl}], #4",
+                "ldr {nb}, [{tbl}], #4",
+                "cmp {nb}, #0",
+                "beq 7f",
+                // Next pair of blocks (the odd last one: 10f).
                 "2:",
                 "movs {k}, #0",
                 "vmov s0, s1, {k}, {k}",
                 "vmov s2, s3, {k}, {k}",
                 "mov {xp}, {xb}",
+                "cmp {nb}, #1",
+                "beq 10f",
+                "vmov s4, s5, {k}, {k}",
+                "vmov s6, s7, {k}, {k}",
+                "add {wq}, {wp}, {n}, lsl #4",
                 "lsrs {k}, {n}, #3",
                 "beq 4f",
                 "3:",
-                "vldmia {xp}!, {{s4-s11}}",
-                "vldmia {wp}!, {{s12-s27}}",
-                cols4_f32!("s4", "s5", "s6", "s7"),
-                "vldmia {wp}!, {{s12-s27}}",
-                cols4_f32!("s8", "s9", "s10", "s11"),
+                "vldmia {xp}!, {{s8-s15}}",
+                "vldmia {wp}!, {{s16-s31}}",
+                products16_f32!("s8", "s9", "s10", "s11", "s0", "s1", "s2", "s3"),
+                "vldmia {wq}!, {{s16-s31}}",
+                products16_f32!("s8", "s9", "s10", "s11", "s4", "s5", "s6", "s7"),
+                "vldmia {wp}!, {{s16-s31}}",
+                products16_f32!("s12", "s13", "s14", "s15", "s0", "s1", "s2", "s3"),
+                "vldmia {wq}!, {{s16-s31}}",
+                products16_f32!("s12", "s13", "s14", "s15", "s4", "s5", "s6", "s7"),
                 "subs {k}, {k}, #1",
                 "bne 3b",
                 "4:",
                 "ands {k}, {n}, #7",
                 "beq 6f",
                 "5:",
-                "vldmia {xp}!, {{s4}}",
-                "vldmia {wp}!, {{s12-s15}}",
-                "vmul.f32 s28, s12, s4",
-                "vmul.f32 s29, s13, s4",
-                "vmul.f32 s30, s14, s4",
-                "vmul.f32 s31, s15, s4",
-                "vadd.f32 s0, s0, s28",
-                "vadd.f32 s1, s1, s29",
-                "vadd.f32 s2, s2, s30",
-                "vadd.f32 s3, s3, s31",
+                "vldmia {xp}!, {{s8}}",
+                "vldmia {wp}!, {{s16-s19}}",
+                "vldmia {wq}!, {{s20-s23}}",
+                column8_f32!(),
                 "subs {k}, {k}, #1",
                 "bne 5b",
                 "6:",
-                "vstmia {op}!, {{s0-s3}}",
-                "subs {nb}, {nb}, #1",
+                "mov {wp}, {wq}",
+                "vstmia {op}!, {{s0-s7}}",
+                "subs {nb}, {nb}, #2",
                 "bne 2b",
-                // The second part, if any: its blocks and weights, once.
-                "movs {nb}, {nb2}",
-                "beq 7f",
-                "mov {wp}, {wp2}",
-                "movs {nb2}, #0",
-                "b 2b",
                 "7:",
+                "subs {np}, {np}, #1",
+                "bne 1b",
+                "b 9f",
+                // A part's odd last block alone.
+                "10:",
+                "lsrs {k}, {n}, #3",
+                "beq 12f",
+                "11:",
+                "vldmia {xp}!, {{s8-s15}}",
+                "vldmia {wp}!, {{s16-s31}}",
+                products16_f32!("s8", "s9", "s10", "s11", "s0", "s1", "s2", "s3"),
+                "vldmia {wp}!, {{s16-s31}}",
+                products16_f32!("s12", "s13", "s14", "s15", "s0", "s1", "s2", "s3"),
+                "subs {k}, {k}, #1",
+                "bne 11b",
+                "12:",
+                "ands {k}, {n}, #7",
+                "beq 14f",
+                "13:",
+                "vldmia {xp}!, {{s8}}",
+                "vldmia {wp}!, {{s16-s19}}",
+                column4_f32!(),
+                "subs {k}, {k}, #1",
+                "bne 13b",
+                "14:",
+                "vstmia {op}!, {{s0-s3}}",
+                "subs {np}, {np}, #1",
+                "bne 1b",
+                "9:",
                 "vpop {{d0-d15}}",
                 op = inout(reg) out => _,
-                wp = inout(reg) w => _,
-                wp2 = in(reg) w2,
+                tbl = inout(reg) parts => _,
+                np = inout(reg) nparts => _,
                 xb = in(reg) x,
                 n = in(reg) n,
-                nb = inout(reg) blocks => _,
-                nb2 = inout(reg) blocks2 => _,
+                wp = out(reg) _,
+                wq = out(reg) _,
+                nb = out(reg) _,
                 xp = out(reg) _,
                 k = out(reg) _,
+            );
+        }
+    }
+
+    /// The cell loop of [`super::lstm_cells_f32`]. Registers: s0-s3 the gate sums `x`,
+    /// s4-s7 `y = -|x|` (lane 2: `-2 min(|x|, 9)`), then `r`, then the activations;
+    /// s8-s11 `u`, `k`, the scale; s12-s15 `hi`, `z`, the denominators; s16-s19 the
+    /// polynomial and `e`; s20-s31 the constants (`consts`: -87, -log2 e, 0.5,
+    /// ln 2 high and low parts, P0-P4, 1, 9). Each step runs across the four lanes.
+    ///
+    /// # Safety
+    /// `acc`, `bias` valid for `n > 0` blocks, `c` and `h` for `n` values (written).
+    #[inline(always)]
+    pub unsafe fn lstm_cells_f32(
+        acc: *const [f32; 4],
+        bias: *const [f32; 4],
+        c: *mut f32,
+        h: *mut f32,
+        n: usize,
+        consts: &[f32; 12],
+    ) {
+        // SAFETY (caller: pointers valid as documented): per cell the loop reads one
+        // block of `acc` and `bias` and one value of `c`, and writes one value of `c`
+        // and of `h`; every FPU register is pushed before and popped after; sp is
+        // restored; only declared core registers and the flags change.
+        unsafe {
+            asm!(
+                "vpush {{d0-d15}}",
+                "vldmia {consts}, {{s20-s31}}",
+                "1:",
+                "vldmia {acc}!, {{s4-s7}}",
+                "vldmia {bias}!, {{s8-s11}}",
+                "vadd.f32 s0, s4, s8",
+                "vadd.f32 s1, s5, s9",
+                "vadd.f32 s2, s6, s10",
+                "vadd.f32 s3, s7, s11",
+                "vabs.f32 s4, s0",
+                "vabs.f32 s5, s1",
+                "vabs.f32 s6, s2",
+                "vabs.f32 s7, s3",
+                "vcmp.f32 s6, s31",
+                "vmrs APSR_nzcv, fpscr",
+                "it gt",
+                "vmovgt.f32 s6, s31",
+                "vmov.f32 s10, #-2.0",
+                "vneg.f32 s4, s4",
+                "vneg.f32 s5, s5",
+                "vmul.f32 s6, s10, s6",
+                "vneg.f32 s7, s7",
+                "vcmp.f32 s4, s20",
+                "vmrs APSR_nzcv, fpscr",
+                "it mi",
+                "vmovmi.f32 s4, s20",
+                "vcmp.f32 s5, s20",
+                "vmrs APSR_nzcv, fpscr",
+                "it mi",
+                "vmovmi.f32 s5, s20",
+                "vcmp.f32 s6, s20",
+                "vmrs APSR_nzcv, fpscr",
+                "it mi",
+                "vmovmi.f32 s6, s20",
+                "vcmp.f32 s7, s20",
+                "vmrs APSR_nzcv, fpscr",
+                "it mi",
+                "vmovmi.f32 s7, s20",
+                "vmul.f32 s8, s4, s21",
+                "vmul.f32 s9, s5, s21",
+                "vmul.f32 s10, s6, s21",
+                "vmul.f32 s11, s7, s21",
+                "vadd.f32 s8, s8, s22",
+                "vadd.f32 s9, s9, s22",
+                "vadd.f32 s10, s10, s22",
+                "vadd.f32 s11, s11, s22",
+                "vcvt.s32.f32 s8, s8",
+                "vcvt.s32.f32 s9, s9",
+                "vcvt.s32.f32 s10, s10",
+                "vcvt.s32.f32 s11, s11",
+                "vmov {k0}, s8",
+                "vmov {k1}, s9",
+                "vmov {k2}, s10",
+                "vmov {k3}, s11",
+                "vcvt.f32.s32 s8, s8",
+                "vcvt.f32.s32 s9, s9",
+                "vcvt.f32.s32 s10, s10",
+                "vcvt.f32.s32 s11, s11",
+                "vmul.f32 s12, s8, s23",
+                "vmul.f32 s13, s9, s23",
+                "vmul.f32 s14, s10, s23",
+                "vmul.f32 s15, s11, s23",
+                "vmul.f32 s8, s8, s24",
+                "vmul.f32 s9, s9, s24",
+                "vmul.f32 s10, s10, s24",
+                "vmul.f32 s11, s11, s24",
+                "vadd.f32 s4, s4, s12",
+                "vadd.f32 s5, s5, s13",
+                "vadd.f32 s6, s6, s14",
+                "vadd.f32 s7, s7, s15",
+                "vadd.f32 s4, s4, s8",
+                "vadd.f32 s5, s5, s9",
+                "vadd.f32 s6, s6, s10",
+                "vadd.f32 s7, s7, s11",
+                "vmul.f32 s12, s4, s4",
+                "vmul.f32 s13, s5, s5",
+                "vmul.f32 s14, s6, s6",
+                "vmul.f32 s15, s7, s7",
+                "vmul.f32 s16, s25, s4",
+                "vmul.f32 s17, s25, s5",
+                "vmul.f32 s18, s25, s6",
+                "vmul.f32 s19, s25, s7",
+                "vadd.f32 s16, s16, s26",
+                "vadd.f32 s17, s17, s26",
+                "vadd.f32 s18, s18, s26",
+                "vadd.f32 s19, s19, s26",
+                "vmul.f32 s16, s16, s4",
+                "vmul.f32 s17, s17, s5",
+                "vmul.f32 s18, s18, s6",
+                "vmul.f32 s19, s19, s7",
+                "vadd.f32 s16, s16, s27",
+                "vadd.f32 s17, s17, s27",
+                "vadd.f32 s18, s18, s27",
+                "vadd.f32 s19, s19, s27",
+                "vmul.f32 s16, s16, s4",
+                "vmul.f32 s17, s17, s5",
+                "vmul.f32 s18, s18, s6",
+                "vmul.f32 s19, s19, s7",
+                "vadd.f32 s16, s16, s28",
+                "vadd.f32 s17, s17, s28",
+                "vadd.f32 s18, s18, s28",
+                "vadd.f32 s19, s19, s28",
+                "vmul.f32 s16, s16, s4",
+                "vmul.f32 s17, s17, s5",
+                "vmul.f32 s18, s18, s6",
+                "vmul.f32 s19, s19, s7",
+                "vadd.f32 s16, s16, s29",
+                "vadd.f32 s17, s17, s29",
+                "vadd.f32 s18, s18, s29",
+                "vadd.f32 s19, s19, s29",
+                "vmul.f32 s16, s16, s4",
+                "vmul.f32 s17, s17, s5",
+                "vmul.f32 s18, s18, s6",
+                "vmul.f32 s19, s19, s7",
+                "vadd.f32 s16, s16, s22",
+                "vadd.f32 s17, s17, s22",
+                "vadd.f32 s18, s18, s22",
+                "vadd.f32 s19, s19, s22",
+                "vmul.f32 s16, s16, s12",
+                "vmul.f32 s17, s17, s13",
+                "vmul.f32 s18, s18, s14",
+                "vmul.f32 s19, s19, s15",
+                "vadd.f32 s16, s16, s4",
+                "vadd.f32 s17, s17, s5",
+                "vadd.f32 s18, s18, s6",
+                "vadd.f32 s19, s19, s7",
+                "vadd.f32 s16, s16, s30",
+                "vadd.f32 s17, s17, s30",
+                "vadd.f32 s18, s18, s30",
+                "vadd.f32 s19, s19, s30",
+                "sub {k0}, {e127}, {k0}, lsl #23",
+                "sub {k1}, {e127}, {k1}, lsl #23",
+                "sub {k2}, {e127}, {k2}, lsl #23",
+                "sub {k3}, {e127}, {k3}, lsl #23",
+                "vmov s8, {k0}",
+                "vmov s9, {k1}",
+                "vmov s10, {k2}",
+                "vmov s11, {k3}",
+                "vmul.f32 s16, s16, s8",
+                "vmul.f32 s17, s17, s9",
+                "vmul.f32 s18, s18, s10",
+                "vmul.f32 s19, s19, s11",
+                "vadd.f32 s12, s30, s16",
+                "vadd.f32 s13, s30, s17",
+                "vadd.f32 s14, s30, s18",
+                "vadd.f32 s15, s30, s19",
+                "vsub.f32 s6, s30, s18",
+                "vcmp.f32 s0, #0",
+                "vmrs APSR_nzcv, fpscr",
+                "ite ge",
+                "vmovge.f32 s4, s30",
+                "vmovlt.f32 s4, s16",
+                "vcmp.f32 s1, #0",
+                "vmrs APSR_nzcv, fpscr",
+                "ite ge",
+                "vmovge.f32 s5, s30",
+                "vmovlt.f32 s5, s17",
+                "vcmp.f32 s3, #0",
+                "vmrs APSR_nzcv, fpscr",
+                "ite ge",
+                "vmovge.f32 s7, s30",
+                "vmovlt.f32 s7, s19",
+                "vdiv.f32 s4, s4, s12",
+                "vdiv.f32 s5, s5, s13",
+                "vdiv.f32 s6, s6, s14",
+                "vdiv.f32 s7, s7, s15",
+                "vcmp.f32 s2, #0",
+                "vmrs APSR_nzcv, fpscr",
+                "it mi",
+                "vnegmi.f32 s6, s6",
+                "vldr s8, [{c}]",
+                "vmul.f32 s9, s5, s8",
+                "vmul.f32 s10, s4, s6",
+                "vstmia {h}!, {{s7}}",
+                "vadd.f32 s8, s9, s10",
+                "vstmia {c}!, {{s8}}",
+                "subs {n}, {n}, #1",
+                "bne 1b",
+                "vpop {{d0-d15}}",
+                acc = inout(reg) acc => _,
+                bias = inout(reg) bias => _,
+                c = inout(reg) c => _,
+                h = inout(reg) h => _,
+                n = inout(reg) n => _,
+                consts = in(reg) consts.as_ptr(),
+                e127 = in(reg) 0x3f80_0000u32,
+                k0 = out(reg) _,
+                k1 = out(reg) _,
+                k2 = out(reg) _,
+                k3 = out(reg) _,
+            );
+        }
+    }
+
+    /// The loop of [`super::tanh4_bias_f32`]: per block `x + bias` into s0-s3, then
+    /// [`super::mul_tanh4_f32`]'s tanh steps. `consts`: -log2 e, 0.5, ln 2 high and low
+    /// parts, P0-P4, 1, 9.
+    ///
+    /// # Safety
+    /// `x` valid for `n > 0` blocks (read and written), `bias` for `n` blocks.
+    #[inline(always)]
+    pub unsafe fn tanh4_bias_f32(
+        x: *mut [f32; 4],
+        bias: *const [f32; 4],
+        n: usize,
+        consts: &[f32; 11],
+    ) {
+        // SAFETY (caller: pointers valid as documented): per block the loop reads one
+        // block of `x` and of `bias` and writes that block of `x`; every FPU register
+        // is pushed before and popped after; sp is restored; only declared core
+        // registers and the flags change.
+        unsafe {
+            asm!(
+                "vpush {{d0-d15}}",
+                "vldmia {consts}, {{s20-s30}}",
+                "vmov.f32 s31, #-2.0",
+                "1:",
+                "vldmia {x}, {{s0-s3}}",
+                "vldmia {b}!, {{s4-s7}}",
+                "vadd.f32 s0, s0, s4",
+                "vadd.f32 s1, s1, s5",
+                "vadd.f32 s2, s2, s6",
+                "vadd.f32 s3, s3, s7",
+                "vabs.f32 s4, s0",
+                "vabs.f32 s5, s1",
+                "vabs.f32 s6, s2",
+                "vabs.f32 s7, s3",
+                "vcmp.f32 s4, s30",
+                "vmrs APSR_nzcv, fpscr",
+                "it gt",
+                "vmovgt.f32 s4, s30",
+                "vcmp.f32 s5, s30",
+                "vmrs APSR_nzcv, fpscr",
+                "it gt",
+                "vmovgt.f32 s5, s30",
+                "vcmp.f32 s6, s30",
+                "vmrs APSR_nzcv, fpscr",
+                "it gt",
+                "vmovgt.f32 s6, s30",
+                "vcmp.f32 s7, s30",
+                "vmrs APSR_nzcv, fpscr",
+                "it gt",
+                "vmovgt.f32 s7, s30",
+                "vmul.f32 s4, s31, s4",
+                "vmul.f32 s5, s31, s5",
+                "vmul.f32 s6, s31, s6",
+                "vmul.f32 s7, s31, s7",
+                "vmul.f32 s8, s4, s20",
+                "vmul.f32 s9, s5, s20",
+                "vmul.f32 s10, s6, s20",
+                "vmul.f32 s11, s7, s20",
+                "vadd.f32 s8, s8, s21",
+                "vadd.f32 s9, s9, s21",
+                "vadd.f32 s10, s10, s21",
+                "vadd.f32 s11, s11, s21",
+                "vcvt.s32.f32 s8, s8",
+                "vcvt.s32.f32 s9, s9",
+                "vcvt.s32.f32 s10, s10",
+                "vcvt.s32.f32 s11, s11",
+                "vmov {k0}, s8",
+                "vmov {k1}, s9",
+                "vmov {k2}, s10",
+                "vmov {k3}, s11",
+                "vcvt.f32.s32 s8, s8",
+                "vcvt.f32.s32 s9, s9",
+                "vcvt.f32.s32 s10, s10",
+                "vcvt.f32.s32 s11, s11",
+                "vmul.f32 s12, s8, s22",
+                "vmul.f32 s13, s9, s22",
+                "vmul.f32 s14, s10, s22",
+                "vmul.f32 s15, s11, s22",
+                "vmul.f32 s8, s8, s23",
+                "vmul.f32 s9, s9, s23",
+                "vmul.f32 s10, s10, s23",
+                "vmul.f32 s11, s11, s23",
+                "vadd.f32 s4, s4, s12",
+                "vadd.f32 s5, s5, s13",
+                "vadd.f32 s6, s6, s14",
+                "vadd.f32 s7, s7, s15",
+                "vadd.f32 s4, s4, s8",
+                "vadd.f32 s5, s5, s9",
+                "vadd.f32 s6, s6, s10",
+                "vadd.f32 s7, s7, s11",
+                "vmul.f32 s12, s4, s4",
+                "vmul.f32 s13, s5, s5",
+                "vmul.f32 s14, s6, s6",
+                "vmul.f32 s15, s7, s7",
+                "vmul.f32 s16, s24, s4",
+                "vmul.f32 s17, s24, s5",
+                "vmul.f32 s18, s24, s6",
+                "vmul.f32 s19, s24, s7",
+                "vadd.f32 s16, s16, s25",
+                "vadd.f32 s17, s17, s25",
+                "vadd.f32 s18, s18, s25",
+                "vadd.f32 s19, s19, s25",
+                "vmul.f32 s16, s16, s4",
+                "vmul.f32 s17, s17, s5",
+                "vmul.f32 s18, s18, s6",
+                "vmul.f32 s19, s19, s7",
+                "vadd.f32 s16, s16, s26",
+                "vadd.f32 s17, s17, s26",
+                "vadd.f32 s18, s18, s26",
+                "vadd.f32 s19, s19, s26",
+                "vmul.f32 s16, s16, s4",
+                "vmul.f32 s17, s17, s5",
+                "vmul.f32 s18, s18, s6",
+                "vmul.f32 s19, s19, s7",
+                "vadd.f32 s16, s16, s27",
+                "vadd.f32 s17, s17, s27",
+                "vadd.f32 s18, s18, s27",
+                "vadd.f32 s19, s19, s27",
+                "vmul.f32 s16, s16, s4",
+                "vmul.f32 s17, s17, s5",
+                "vmul.f32 s18, s18, s6",
+                "vmul.f32 s19, s19, s7",
+                "vadd.f32 s16, s16, s28",
+                "vadd.f32 s17, s17, s28",
+                "vadd.f32 s18, s18, s28",
+                "vadd.f32 s19, s19, s28",
+                "vmul.f32 s16, s16, s4",
+                "vmul.f32 s17, s17, s5",
+                "vmul.f32 s18, s18, s6",
+                "vmul.f32 s19, s19, s7",
+                "vadd.f32 s16, s16, s21",
+                "vadd.f32 s17, s17, s21",
+                "vadd.f32 s18, s18, s21",
+                "vadd.f32 s19, s19, s21",
+                "vmul.f32 s16, s16, s12",
+                "vmul.f32 s17, s17, s13",
+                "vmul.f32 s18, s18, s14",
+                "vmul.f32 s19, s19, s15",
+                "vadd.f32 s16, s16, s4",
+                "vadd.f32 s17, s17, s5",
+                "vadd.f32 s18, s18, s6",
+                "vadd.f32 s19, s19, s7",
+                "vadd.f32 s16, s16, s29",
+                "vadd.f32 s17, s17, s29",
+                "vadd.f32 s18, s18, s29",
+                "vadd.f32 s19, s19, s29",
+                "sub {k0}, {e127}, {k0}, lsl #23",
+                "sub {k1}, {e127}, {k1}, lsl #23",
+                "sub {k2}, {e127}, {k2}, lsl #23",
+                "sub {k3}, {e127}, {k3}, lsl #23",
+                "vmov s8, {k0}",
+                "vmov s9, {k1}",
+                "vmov s10, {k2}",
+                "vmov s11, {k3}",
+                "vmul.f32 s16, s16, s8",
+                "vmul.f32 s17, s17, s9",
+                "vmul.f32 s18, s18, s10",
+                "vmul.f32 s19, s19, s11",
+                "vsub.f32 s4, s29, s16",
+                "vsub.f32 s5, s29, s17",
+                "vsub.f32 s6, s29, s18",
+                "vsub.f32 s7, s29, s19",
+                "vadd.f32 s12, s29, s16",
+                "vadd.f32 s13, s29, s17",
+                "vadd.f32 s14, s29, s18",
+                "vadd.f32 s15, s29, s19",
+                "vdiv.f32 s4, s4, s12",
+                "vdiv.f32 s5, s5, s13",
+                "vdiv.f32 s6, s6, s14",
+                "vdiv.f32 s7, s7, s15",
+                "vcmp.f32 s0, #0",
+                "vmrs APSR_nzcv, fpscr",
+                "it mi",
+                "vnegmi.f32 s4, s4",
+                "vcmp.f32 s1, #0",
+                "vmrs APSR_nzcv, fpscr",
+                "it mi",
+                "vnegmi.f32 s5, s5",
+                "vcmp.f32 s2, #0",
+                "vmrs APSR_nzcv, fpscr",
+                "it mi",
+                "vnegmi.f32 s6, s6",
+                "vcmp.f32 s3, #0",
+                "vmrs APSR_nzcv, fpscr",
+                "it mi",
+                "vnegmi.f32 s7, s7",
+                "vstmia {x}!, {{s4-s7}}",
+                "subs {n}, {n}, #1",
+                "bne 1b",
+                "vpop {{d0-d15}}",
+                x = inout(reg) x => _,
+                b = inout(reg) bias => _,
+                n = inout(reg) n => _,
+                consts = in(reg) consts.as_ptr(),
+                e127 = in(reg) 0x3f80_0000u32,
+                k0 = out(reg) _,
+                k1 = out(reg) _,
+                k2 = out(reg) _,
+                k3 = out(reg) _,
+            );
+        }
+    }
+
+    /// The loop of [`super::mul_tanh4_f32`]. Registers: s0-s3 `c`, s4-s7 `-2 min(|c|,
+    /// 9)`, then `r`, then `tanh`; s8-s11 `u`, `k`, the scale, then `h`; s12-s15 `hi`,
+    /// `z`, the denominators; s16-s19 the polynomial and `e`; s20-s30 the constants
+    /// (`consts`: -log2 e, 0.5, ln 2 high and low parts, P0-P4, 1, 9), s31 -2. The
+    /// exponential's clamp at -87 is left out: its argument is at least -18 (or NaN).
+    ///
+    /// # Safety
+    /// `h` valid for `n > 0` blocks (read and written), `c` for `n` blocks.
+    #[inline(always)]
+    pub unsafe fn mul_tanh4_f32(
+        h: *mut [f32; 4],
+        c: *const [f32; 4],
+        n: usize,
+        consts: &[f32; 11],
+    ) {
+        // SAFETY (caller: pointers valid as documented): per block the loop reads one
+        // block of `c` and of `h` and writes that block of `h`; every FPU register is
+        // pushed before and popped after; sp is restored; only declared core registers
+        // and the flags change.
+        unsafe {
+            asm!(
+                "vpush {{d0-d15}}",
+                "vldmia {consts}, {{s20-s30}}",
+                "vmov.f32 s31, #-2.0",
+                "1:",
+                "vldmia {c}!, {{s0-s3}}",
+                "vabs.f32 s4, s0",
+                "vabs.f32 s5, s1",
+                "vabs.f32 s6, s2",
+                "vabs.f32 s7, s3",
+                "vcmp.f32 s4, s30",
+                "vmrs APSR_nzcv, fpscr",
+                "it gt",
+                "vmovgt.f32 s4, s30",
+                "vcmp.f32 s5, s30",
+                "vmrs APSR_nzcv, fpscr",
+                "it gt",
+                "vmovgt.f32 s5, s30",
+                "vcmp.f32 s6, s30",
+                "vmrs APSR_nzcv, fpscr",
+                "it gt",
+                "vmovgt.f32 s6, s30",
+                "vcmp.f32 s7, s30",
+                "vmrs APSR_nzcv, fpscr",
+                "it gt",
+                "vmovgt.f32 s7, s30",
+                "vmul.f32 s4, s31, s4",
+                "vmul.f32 s5, s31, s5",
+                "vmul.f32 s6, s31, s6",
+                "vmul.f32 s7, s31, s7",
+                "vmul.f32 s8, s4, s20",
+                "vmul.f32 s9, s5, s20",
+                "vmul.f32 s10, s6, s20",
+                "vmul.f32 s11, s7, s20",
+                "vadd.f32 s8, s8, s21",
+                "vadd.f32 s9, s9, s21",
+                "vadd.f32 s10, s10, s21",
+                "vadd.f32 s11, s11, s21",
+                "vcvt.s32.f32 s8, s8",
+                "vcvt.s32.f32 s9, s9",
+                "vcvt.s32.f32 s10, s10",
+                "vcvt.s32.f32 s11, s11",
+                "vmov {k0}, s8",
+                "vmov {k1}, s9",
+                "vmov {k2}, s10",
+                "vmov {k3}, s11",
+                "vcvt.f32.s32 s8, s8",
+                "vcvt.f32.s32 s9, s9",
+                "vcvt.f32.s32 s10, s10",
+                "vcvt.f32.s32 s11, s11",
+                "vmul.f32 s12, s8, s22",
+                "vmul.f32 s13, s9, s22",
+                "vmul.f32 s14, s10, s22",
+                "vmul.f32 s15, s11, s22",
+                "vmul.f32 s8, s8, s23",
+                "vmul.f32 s9, s9, s23",
+                "vmul.f32 s10, s10, s23",
+                "vmul.f32 s11, s11, s23",
+                "vadd.f32 s4, s4, s12",
+                "vadd.f32 s5, s5, s13",
+                "vadd.f32 s6, s6, s14",
+                "vadd.f32 s7, s7, s15",
+                "vadd.f32 s4, s4, s8",
+                "vadd.f32 s5, s5, s9",
+                "vadd.f32 s6, s6, s10",
+                "vadd.f32 s7, s7, s11",
+                "vmul.f32 s12, s4, s4",
+                "vmul.f32 s13, s5, s5",
+                "vmul.f32 s14, s6, s6",
+                "vmul.f32 s15, s7, s7",
+                "vmul.f32 s16, s24, s4",
+                "vmul.f32 s17, s24, s5",
+                "vmul.f32 s18, s24, s6",
+                "vmul.f32 s19, s24, s7",
+                "vadd.f32 s16, s16, s25",
+                "vadd.f32 s17, s17, s25",
+                "vadd.f32 s18, s18, s25",
+                "vadd.f32 s19, s19, s25",
+                "vmul.f32 s16, s16, s4",
+                "vmul.f32 s17, s17, s5",
+                "vmul.f32 s18, s18, s6",
+                "vmul.f32 s19, s19, s7",
+                "vadd.f32 s16, s16, s26",
+                "vadd.f32 s17, s17, s26",
+                "vadd.f32 s18, s18, s26",
+                "vadd.f32 s19, s19, s26",
+                "vmul.f32 s16, s16, s4",
+                "vmul.f32 s17, s17, s5",
+                "vmul.f32 s18, s18, s6",
+                "vmul.f32 s19, s19, s7",
+                "vadd.f32 s16, s16, s27",
+                "vadd.f32 s17, s17, s27",
+                "vadd.f32 s18, s18, s27",
+                "vadd.f32 s19, s19, s27",
+                "vmul.f32 s16, s16, s4",
+                "vmul.f32 s17, s17, s5",
+                "vmul.f32 s18, s18, s6",
+                "vmul.f32 s19, s19, s7",
+                "vadd.f32 s16, s16, s28",
+                "vadd.f32 s17, s17, s28",
+                "vadd.f32 s18, s18, s28",
+                "vadd.f32 s19, s19, s28",
+                "vmul.f32 s16, s16, s4",
+                "vmul.f32 s17, s17, s5",
+                "vmul.f32 s18, s18, s6",
+                "vmul.f32 s19, s19, s7",
+                "vadd.f32 s16, s16, s21",
+                "vadd.f32 s17, s17, s21",
+                "vadd.f32 s18, s18, s21",
+                "vadd.f32 s19, s19, s21",
+                "vmul.f32 s16, s16, s12",
+                "vmul.f32 s17, s17, s13",
+                "vmul.f32 s18, s18, s14",
+                "vmul.f32 s19, s19, s15",
+                "vadd.f32 s16, s16, s4",
+                "vadd.f32 s17, s17, s5",
+                "vadd.f32 s18, s18, s6",
+                "vadd.f32 s19, s19, s7",
+                "vadd.f32 s16, s16, s29",
+                "vadd.f32 s17, s17, s29",
+                "vadd.f32 s18, s18, s29",
+                "vadd.f32 s19, s19, s29",
+                "sub {k0}, {e127}, {k0}, lsl #23",
+                "sub {k1}, {e127}, {k1}, lsl #23",
+                "sub {k2}, {e127}, {k2}, lsl #23",
+                "sub {k3}, {e127}, {k3}, lsl #23",
+                "vmov s8, {k0}",
+                "vmov s9, {k1}",
+                "vmov s10, {k2}",
+                "vmov s11, {k3}",
+                "vmul.f32 s16, s16, s8",
+                "vmul.f32 s17, s17, s9",
+                "vmul.f32 s18, s18, s10",
+                "vmul.f32 s19, s19, s11",
+                "vsub.f32 s4, s29, s16",
+                "vsub.f32 s5, s29, s17",
+                "vsub.f32 s6, s29, s18",
+                "vsub.f32 s7, s29, s19",
+                "vadd.f32 s12, s29, s16",
+                "vadd.f32 s13, s29, s17",
+                "vadd.f32 s14, s29, s18",
+                "vadd.f32 s15, s29, s19",
+                "vdiv.f32 s4, s4, s12",
+                "vdiv.f32 s5, s5, s13",
+                "vdiv.f32 s6, s6, s14",
+                "vdiv.f32 s7, s7, s15",
+                "vcmp.f32 s0, #0",
+                "vmrs APSR_nzcv, fpscr",
+                "it mi",
+                "vnegmi.f32 s4, s4",
+                "vcmp.f32 s1, #0",
+                "vmrs APSR_nzcv, fpscr",
+                "it mi",
+                "vnegmi.f32 s5, s5",
+                "vcmp.f32 s2, #0",
+                "vmrs APSR_nzcv, fpscr",
+                "it mi",
+                "vnegmi.f32 s6, s6",
+                "vcmp.f32 s3, #0",
+                "vmrs APSR_nzcv, fpscr",
+                "it mi",
+                "vnegmi.f32 s7, s7",
+                "vldmia {h}, {{s8-s11}}",
+                "vmul.f32 s8, s8, s4",
+                "vmul.f32 s9, s9, s5",
+                "vmul.f32 s10, s10, s6",
+                "vmul.f32 s11, s11, s7",
+                "vstmia {h}!, {{s8-s11}}",
+                "subs {n}, {n}, #1",
+                "bne 1b",
+                "vpop {{d0-d15}}",
+                h = inout(reg) h => _,
+                c = inout(reg) c => _,
+                n = inout(reg) n => _,
+                consts = in(reg) consts.as_ptr(),
+                e127 = in(reg) 0x3f80_0000u32,
+                k0 = out(reg) _,
+                k1 = out(reg) _,
+                k2 = out(reg) _,
+                k3 = out(reg) _,
             );
         }
     }
@@ -1472,20 +2329,108 @@ mod tests {
                 "block {b}"
             );
         }
-        // The same layer from two parts: the same bits, whichever split.
-        for split in 0..=2 {
-            let mut parts = [[9.0f32; 4]; 2];
-            let (head, tail) = wf.split_at(split * N);
-            matvec4_f32_parts(&mut parts, head, tail, &xf);
-            assert_eq!(
-                parts.map(|b| b.map(f32::to_bits)),
-                out.map(|b| b.map(f32::to_bits)),
-                "split after {split} blocks"
-            );
+        // The same layer from three parts: the same bits, whichever split.
+        for first in 0..=2 {
+            for second in first..=2 {
+                let mut parts = [[9.0f32; 4]; 2];
+                let (head, rest) = wf.split_at(first * N);
+                let (middle, tail) = rest.split_at((second - first) * N);
+                matvec4_f32_parts(&mut parts, [head, middle, tail], &xf);
+                assert_eq!(
+                    parts.map(|b| b.map(f32::to_bits)),
+                    out.map(|b| b.map(f32::to_bits)),
+                    "split after {first} and {second} blocks"
+                );
+            }
         }
         let mut none = [[1.0f32; 4]; 1];
         matvec4_f32(&mut none, &wf, &[]);
         assert_eq!(none, [[0.0; 4]]);
+    }
+
+    #[test]
+    fn lstm_cells_f32_is_the_gates_and_the_cell_update() {
+        // Gate sums over the activations' whole range, NaN and the clamps included.
+        let sums = [
+            -100.0f32,
+            -9.5,
+            -1.25,
+            -0.0,
+            0.0,
+            3e-8,
+            0.7,
+            9.0,
+            20.0,
+            120.0,
+            f32::NAN,
+        ];
+        let acc: [[f32; 4]; 11] =
+            core::array::from_fn(|j| core::array::from_fn(|r| sums[(j + 3 * r) % sums.len()]));
+        let bias: [[f32; 4]; 11] = core::array::from_fn(|j| {
+            core::array::from_fn(|r| unit(word((4 * j + r) as u32)) - 0.5)
+        });
+        let c0: [f32; 11] = core::array::from_fn(|j| 4.0 * unit(word(50 + j as u32)) - 2.0);
+        let mut c = c0;
+        let mut h = [7.0f32; 11];
+        lstm_cells_f32(&acc, &bias, &mut c, &mut h);
+        for j in 0..11 {
+            let x: [f32; 4] = core::array::from_fn(|r| acc[j][r] + bias[j][r]);
+            let (i, f, g, o) = (
+                crate::math::sigmoid_fast(x[0]),
+                crate::math::sigmoid_fast(x[1]),
+                crate::math::tanh_fast(x[2]),
+                crate::math::sigmoid_fast(x[3]),
+            );
+            assert_eq!(c[j].to_bits(), (f * c0[j] + i * g).to_bits(), "cell {j}");
+            assert_eq!(h[j].to_bits(), o.to_bits(), "cell {j}");
+        }
+        // Only min(len) cells are touched.
+        let mut c2 = [1.0f32; 3];
+        let mut h2 = [2.0f32; 3];
+        lstm_cells_f32(&acc[..2], &bias, &mut c2, &mut h2);
+        assert_eq!((c2[2], h2[2]), (1.0, 2.0));
+    }
+
+    #[test]
+    fn the_tanh_layers_are_tanh_fast_lane_for_lane() {
+        let v = [
+            -30.0f32,
+            -9.5,
+            -1.0,
+            -0.0,
+            0.0,
+            1e-6,
+            0.3,
+            8.9,
+            12.0,
+            f32::INFINITY,
+            f32::NAN,
+        ];
+        let x: [[f32; 4]; 7] =
+            core::array::from_fn(|j| core::array::from_fn(|r| v[(3 * j + r) % v.len()]));
+        let b: [[f32; 4]; 7] = core::array::from_fn(|j| {
+            core::array::from_fn(|r| unit(word((9 * j + r) as u32)) - 0.5)
+        });
+        let mut t = x;
+        tanh4_bias_f32(&mut t, &b);
+        let mut m = b;
+        mul_tanh4_f32(&mut m, &x);
+        for j in 0..7 {
+            for r in 0..4 {
+                let want_t = crate::math::tanh_fast(x[j][r] + b[j][r]);
+                assert_eq!(
+                    t[j][r].to_bits(),
+                    want_t.to_bits(),
+                    "tanh block {j} lane {r}"
+                );
+                let want_m = b[j][r] * crate::math::tanh_fast(x[j][r]);
+                assert_eq!(
+                    m[j][r].to_bits(),
+                    want_m.to_bits(),
+                    "mul block {j} lane {r}"
+                );
+            }
+        }
     }
 
     #[test]

@@ -12,6 +12,8 @@ pub const RAM_START: u64 = 0x2000_0000;
 pub const RAM_END: u64 = 0x4000_0000;
 /// The section of the code that runs from CCM SRAM (`memory.x`): not counted as RAM.
 pub const CCM_CODE_SECTION: &str = ".ccmram_text";
+/// The section of the model data placed in CCM SRAM (`memory.x`): not counted as RAM.
+pub const CCM_DATA_SECTION: &str = ".ccmram_data";
 
 /// One allocated section and where it lands.
 #[derive(Clone, Debug, Serialize)]
@@ -86,9 +88,12 @@ pub fn size_report(elf: &Path, top: usize) -> Result<SizeReport> {
             continue;
         }
         let name = s.name().unwrap_or("?").to_string();
-        // `.ccmram_text` is the board's CCM SRAM (0x1000_0000), not its SRAM: the QEMU
-        // image keeps it in the last 64 KiB of its RAM, which the board does not have.
-        let in_ram = (RAM_START..RAM_END).contains(&s.address()) && name != CCM_CODE_SECTION;
+        // `.ccmram_text` and `.ccmram_data` are the board's CCM SRAM (0x1000_0000), not
+        // its SRAM: the QEMU image keeps them in the last 128 KiB of its RAM, which the
+        // board does not have.
+        let in_ram = (RAM_START..RAM_END).contains(&s.address())
+            && name != CCM_CODE_SECTION
+            && name != CCM_DATA_SECTION;
         let has_bytes = !matches!(
             s.kind(),
             SectionKind::UninitializedData | SectionKind::UninitializedTls

@@ -89,6 +89,24 @@ pub fn host_dot() -> Vec<Record> {
         .collect()
 }
 
+/// The host's computation of the `cells` suite: the new cell state (`c`) and `o`
+/// (`h`) of each cell, index and input = the cell; `tanh(acc + bias)` (`t`) and
+/// `bias * tanh(acc)` (`m`) of each of its four lanes, index and input = 4 cells + lane.
+pub fn host_cells() -> Vec<Record> {
+    let (c, h, t, m) = golden::cells_output();
+    let mut out = Vec::with_capacity(10 * golden::CELL_CASES);
+    for j in 0..golden::CELL_CASES {
+        out.push(Record::new("c", j, j as u32, c[j].to_bits()));
+        out.push(Record::new("h", j, j as u32, h[j].to_bits()));
+        for r in 0..4 {
+            let k = 4 * j + r;
+            out.push(Record::new("t", k, k as u32, t[j][r].to_bits()));
+            out.push(Record::new("m", k, k as u32, m[j][r].to_bits()));
+        }
+    }
+    out
+}
+
 /// The host's computation of the `dynamics` suite: one record per joint torque,
 /// function `tau<joint>`, index and input = the case number.
 pub fn host_dynamics() -> Vec<Record> {
@@ -190,6 +208,7 @@ pub fn check_report(report: &str) -> Result<Vec<SuiteCheck>> {
     let mut host: Vec<(&'static str, Vec<Record>)> = vec![
         ("math", host_math()),
         ("dot", host_dot()),
+        ("cells", host_cells()),
         ("dynamics", host_dynamics()),
         ("features", host_features()),
         ("lstm", host_lstm()),

@@ -9,8 +9,9 @@
 //! Figures (RM0440 rev 8, §3.3.3-3.3.5 "Read access latency", "Instruction
 //! prefetch", "Instruction cache memory", "Data cache memory"; Cortex-M4 TRM):
 //! - flash at 170 MHz (range 1 boost) needs LATENCY = 4 wait states: one flash read
-//!   takes 1 + 4 = 5 HCLK cycles and returns 64 bits in dual-bank mode (DBANK = 1,
-//!   the factory setting) or 128 bits in single-bank mode ([`FlashTiming::read_bytes`]);
+//!   takes 1 + 4 = 5 HCLK cycles and returns 128 bits in single-bank mode (DBANK = 0,
+//!   how the board is provisioned) or 64 bits in dual-bank mode (DBANK = 1, the
+//!   factory setting) ([`FlashTiming::read_bytes`]);
 //! - prefetch (PRFTEN, instruction bus only): while the core uses one line the
 //!   next sequential line is read;
 //! - instruction cache (ICEN): 32 lines of 4 x 64 bits (1 KiB); a line read on a
@@ -62,15 +63,16 @@ impl MemoryMap {
     /// The QEMU mps2-an386 image (`firmware/qemu/memory.x`) as the board places it
     /// (`board/memory.x`): the image's FLASH region (0x0000_0000, 4 MiB: vector
     /// table, `.text`, `.rodata`) is the board's flash at 0x0800_0000, its CCMRAM
-    /// region (0x203F_0000, 64 KiB: `.ccmram_text`) the board's CCM SRAM on the
-    /// instruction bus at 0x1000_0000, the rest of its RAM (0x2000_0000: `.data`,
-    /// `.bss`, stack) the board's SRAM at 0x2000_0000.
+    /// region (0x203E_0000, 128 KiB: `.ccmram_text` and `.ccmram_data`) the board's
+    /// CCM SRAM (code on the instruction bus at 0x1000_0000, data zero-wait on the
+    /// data bus), the rest of its RAM (0x2000_0000: `.data`, `.bss`, stack) the
+    /// board's SRAM at 0x2000_0000.
     pub fn qemu_image_on_g474() -> MemoryMap {
         MemoryMap {
             ranges: vec![
                 (0x0000_0000, 0x0040_0000, Region::Flash),
-                (0x203F_0000, 0x2040_0000, Region::CcmSram),
-                (0x2000_0000, 0x203F_0000, Region::Sram),
+                (0x203E_0000, 0x2040_0000, Region::CcmSram),
+                (0x2000_0000, 0x203E_0000, Region::Sram),
             ],
         }
     }
@@ -113,9 +115,15 @@ pub struct FlashTiming {
 }
 
 impl FlashTiming {
-    /// The board (`board/src/clock.rs`): 170 MHz, LATENCY = 4, PRFTEN, ICEN,
-    /// DCEN, dual bank (64-bit reads).
+    /// The board (`board/src/clock.rs`, `board/memory.x`): 170 MHz, LATENCY = 4,
+    /// PRFTEN, ICEN, DCEN, single bank (DBANK = 0: 128-bit reads).
     pub const G474_170_MHZ: FlashTiming = FlashTiming {
+        read_bytes: 16,
+        ..Self::G474_170_MHZ_DUAL_BANK
+    };
+
+    /// The same in the factory dual-bank mode (DBANK = 1: 64-bit reads).
+    pub const G474_170_MHZ_DUAL_BANK: FlashTiming = FlashTiming {
         wait_states: 4,
         read_bytes: 8,
         prefetch: true,
@@ -675,7 +683,15 @@ mod tests {
         let m = ChipModel::g474_for_qemu_image();
         assert_eq!(replay(&m, &straight(0x203F_8000, 16)).0, 16);
         assert_eq!(replay(&m, &straight(0x2000_0000, 16)).0, 16);
-        assert_eq!(replay(&m, &straight(0x0000_0100, 16)).0, 16 + 4 + 7 * 3);
+        // From flash (single bank, the board's): 16 bytes (4 instructions) per read
+        // every 5 cycles, the first line waits 4, each later one 1.
+        assert_eq!(replay(&m, &straight(0x0000_0100, 16)).0, 16 + 4 + 3);
+        // Dual bank (the factory setting): 8 bytes per read, 4 + 7 x 3.
+        let dual = ChipModel {
+            flash: FlashTiming::G474_170_MHZ_DUAL_BANK,
+            ..m
+        };
+        assert_eq!(replay(&dual, &straight(0x0000_0100, 16)).0, 16 + 4 + 7 * 3);
     }
 
     #[test]
@@ -684,6 +700,8 @@ mod tests {
         assert_eq!(q.region(0x0000_1234), Region::Flash);
         assert_eq!(q.region(0x2000_0100), Region::Sram);
         assert_eq!(q.region(0x203F_8100), Region::CcmSram);
+        assert_eq!(q.region(0x203E_0000), Region::CcmSram);
+        assert_eq!(q.region(0x203D_FFFC), Region::Sram);
         assert_eq!(q.region(0x4000_0000), Region::Other);
         let b = MemoryMap::g474();
         assert_eq!(b.region(0x0800_0000), Region::Flash);

@@ -120,6 +120,55 @@ pub fn dot_output(case: usize) -> f32 {
     math::dot(&a, &b)
 }
 
+/// Cells of the `cells` suite (`firmware::dsp::lstm_cells_f32`, the f32 LSTM's gate
+/// activations and cell update; `tanh4_bias_f32` and `mul_tanh4_f32`, its tanh layers).
+pub const CELL_CASES: usize = 512;
+
+/// Gate sums, bias and cell state of the `cells` suite: sums over the activations'
+/// whole range (|x| up to 128, past the clamps at 9 and 87), every 61st an infinity
+/// or NaN.
+pub fn cell_case(j: usize) -> ([f32; 4], [f32; 4], f32) {
+    let v = |k: u32| 256.0 * unit(hash(k)) - 128.0;
+    let special = [f32::INFINITY, f32::NEG_INFINITY, f32::NAN, -0.0];
+    let acc: [f32; 4] = core::array::from_fn(|r| {
+        let k = (4 * j + r) as u32;
+        if k.is_multiple_of(61) {
+            special[(k / 61) as usize % special.len()]
+        } else {
+            // Half of the sums small, where the exponentials' polynomials matter most.
+            let x = v(k.wrapping_mul(3));
+            if k.is_multiple_of(2) { x / 16.0 } else { x }
+        }
+    });
+    let bias: [f32; 4] = core::array::from_fn(|r| unit(hash((4 * j + r) as u32 ^ 0x5a5a)) - 0.5);
+    (acc, bias, 4.0 * unit(hash(j as u32 ^ 0xc311)) - 2.0)
+}
+
+/// Of every cell of the `cells` suite: the new cell state and `o` (one call of
+/// `firmware::dsp::lstm_cells_f32`), `tanh(acc + bias)` of its four sums (one call of
+/// `tanh4_bias_f32`) and `bias * tanh(acc)` (one call of `mul_tanh4_f32`).
+#[allow(clippy::type_complexity)]
+pub fn cells_output() -> (
+    [f32; CELL_CASES],
+    [f32; CELL_CASES],
+    [[f32; 4]; CELL_CASES],
+    [[f32; 4]; CELL_CASES],
+) {
+    let mut acc = [[0.0f32; 4]; CELL_CASES];
+    let mut bias = [[0.0f32; 4]; CELL_CASES];
+    let mut c = [0.0f32; CELL_CASES];
+    for j in 0..CELL_CASES {
+        (acc[j], bias[j], c[j]) = cell_case(j);
+    }
+    let mut h = [0.0f32; CELL_CASES];
+    firmware::dsp::lstm_cells_f32(&acc, &bias, &mut c, &mut h);
+    let mut t = acc;
+    firmware::dsp::tanh4_bias_f32(&mut t, &bias);
+    let mut m = bias;
+    firmware::dsp::mul_tanh4_f32(&mut m, &acc);
+    (c, h, t, m)
+}
+
 /// Number of dynamics golden cases (one record per joint torque each).
 pub const DYNAMICS_CASES: usize = 500;
 /// Joints of the golden dynamics model.

@@ -109,6 +109,11 @@ mod app {
         if !clock::boost_170_mhz(&dp.RCC, &dp.PWR, &dp.FLASH) {
             firmware::fw_warn!("the 170 MHz clock set-up timed out: cycles are not the board's");
         }
+        if !clock::flash_single_bank(&dp.FLASH) {
+            firmware::fw_warn!(
+                "flash in dual-bank mode (DBANK = 1): cycles are not the budget's (single-bank) flash"
+            );
+        }
         cp.DCB.enable_trace();
         cp.DWT.enable_cycle_counter();
         cp.SYST.set_clock_source(SystClkSource::Core);

@@ -617,6 +617,7 @@ impl F32Net {
             b_in: &self.b_in,
             input_activation: self.input_activation,
             w_gates: &self.w_gates,
+            w_gates_middle: &[],
             w_gates_tail: &[],
             b_gates: &self.b_gates,
             w_out: &self.w_out,
@@ -634,13 +635,12 @@ impl F32Net {
         let mut z = vec![0.0f32; e + d.hidden];
         let mut c = vec![0.0f32; d.hidden];
         let mut xn = vec![0.0f32; d.input];
-        let mut hn = vec![0.0f32; d.hidden];
         let mut acc = vec![[0.0f32; 4]; d.hidden];
         inputs
             .iter()
             .map(|x| {
                 let mut y = vec![0.0f32; d.output];
-                v.step(&mut z, &mut c, &mut xn, &mut hn, &mut acc, x, &mut y);
+                v.step(&mut z, &mut c, &mut xn, &mut acc, x, &mut y);
                 y
             })
             .collect()
@@ -769,6 +769,13 @@ pub struct ExportMeta {
 pub const SRAM_SECTION_ATTRIBUTE: &str = "#[cfg_attr(target_os = \"none\", allow(unsafe_code), \
      unsafe(link_section = \".data.model_arrays\"))]";
 
+/// The `link_section` attribute of the gate blocks placed in CCM SRAM: an input section
+/// of `.ccmram_data` (both `memory.x` files: run address in CCM SRAM, load image in
+/// flash, copied at start-up by `ccm::copy_code` before `main` reads it; the linker
+/// fails when code and data outgrow CCM SRAM). Host builds ignore it.
+pub const CCM_SECTION_ATTRIBUTE: &str = "#[cfg_attr(target_os = \"none\", allow(unsafe_code), \
+     unsafe(link_section = \".ccmram_data.model_arrays\"))]";
+
 /// Where the exporter puts the model's arrays (network, linear stage, rigid-body model).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Placement {
@@ -875,11 +882,29 @@ pub fn sram_budget(path: &std::path::Path) -> anyhow::Result<SramBudget> {
     })?;
     let layout_ram_bytes =
         layout_ram_bytes(&layout_text).map_err(|e| anyhow::anyhow!("{}: {e}", layout.display()))?;
+    let ram_limit_bytes = bytes(&["binary", "board", "ram_bytes"])?;
+    let stack_reserve_bytes = bytes(&["binary", "board", "stack_reserve_bytes"])?;
+    let firmware_ram_bytes = bytes(&["binary", "board", "firmware_ram_bytes"])?;
+    // CCM SRAM for model data: optional (a layout without the region, or a budget file
+    // without the code reserve, places nothing there).
+    let ccm_code_reserve_bytes = match v
+        .get("binary")
+        .and_then(|b| b.get("board"))
+        .and_then(|b| b.get("ccm_code_reserve_bytes"))
+    {
+        None => None,
+        Some(_) => Some(bytes(&["binary", "board", "ccm_code_reserve_bytes"])?),
+    };
+    let layout_ccm_bytes = layout_region_bytes(&layout_text, "CCMRAM")
+        .map_err(|e| anyhow::anyhow!("{}: {e}", layout.display()))?
+        .unwrap_or(0);
     Ok(SramBudget {
         layout_ram_bytes,
-        ram_limit_bytes: bytes(&["binary", "board", "ram_bytes"])?,
-        stack_reserve_bytes: bytes(&["binary", "board", "stack_reserve_bytes"])?,
-        firmware_ram_bytes: bytes(&["binary", "board", "firmware_ram_bytes"])?,
+        ram_limit_bytes,
+        stack_reserve_bytes,
+        firmware_ram_bytes,
+        layout_ccm_bytes,
+        ccm_code_reserve_bytes,
     })
 }
 
@@ -894,8 +919,9 @@ pub fn sram_budget(path: &std::path::Path) -> anyhow::Result<SramBudget> {
 pub fn choose_placement(
     want: WeightsIn,
     bytes: ModelBytes,
-    sram_budget_bytes: Option<u64>,
+    budget: Option<ModelBudget>,
 ) -> Result<PlacementChoice> {
+    let sram_budget_bytes = budget.map(|b| b.sram_bytes);
     let total = bytes.network + bytes.dynamics + bytes.linear_stage;
     let all = |p| [p; 3];
     let [network, dynamics, linear_stage] = match (want, sram_budget_bytes) {
@@ -927,13 +953,20 @@ pub fn choose_placement(
     .filter(|(p, _)| *p == Placement::Sram)
     .map(|(_, n)| *n as u64)
     .sum::<u64>();
-    // A network too big for SRAM: the first blocks of its gate matrix fill what is left.
-    let gate_blocks_in_sram = match (want, sram_budget_bytes, network) {
+    // A network too big for SRAM: the first blocks of its gate matrix fill what is left,
+    // the next ones the CCM SRAM budget.
+    let whole_blocks =
+        |left: u64, at_most: usize| ((left / bytes.gate_block.max(1) as u64) as usize).min(at_most);
+    let (gate_blocks_in_sram, gate_blocks_in_ccm) = match (want, budget, network) {
         (WeightsIn::Auto, Some(b), Placement::Flash) if bytes.gate_block > 0 => {
-            let left = b.saturating_sub(arrays_in_sram);
-            ((left / bytes.gate_block as u64) as usize).min(bytes.gate_blocks)
+            let sram = whole_blocks(
+                b.sram_bytes.saturating_sub(arrays_in_sram),
+                bytes.gate_blocks,
+            );
+            let ccm = whole_blocks(b.ccm_bytes, bytes.gate_blocks - sram);
+            (sram, ccm)
         }
-        _ => 0,
+        _ => (0, 0),
     };
     let in_sram = arrays_in_sram + (gate_blocks_in_sram * bytes.gate_block) as u64;
     let act_tables = (bytes.act_tables > 0).then(|| match (want, sram_budget_bytes) {
@@ -953,8 +986,10 @@ pub fn choose_placement(
         linear_stage,
         act_tables,
         gate_blocks_in_sram,
+        gate_blocks_in_ccm,
         bytes,
         sram_budget_bytes,
+        ccm_budget_bytes: budget.map(|b| b.ccm_bytes),
     })
 }
 
@@ -992,10 +1027,15 @@ pub struct PlacementChoice {
     /// With the network in flash: the first blocks of its gate matrix placed in SRAM
     /// (`GATES_HEAD`; 0 for none, always 0 for an integer network).
     pub gate_blocks_in_sram: usize,
+    /// With the network in flash: the blocks after those placed in CCM SRAM
+    /// (`GATES_MIDDLE`; 0 for none).
+    pub gate_blocks_in_ccm: usize,
     /// Their sizes.
     pub bytes: ModelBytes,
     /// The SRAM budget for the model's arrays [bytes], when a budget file was given.
     pub sram_budget_bytes: Option<u64>,
+    /// The CCM SRAM budget for model data [bytes], when a budget file was given.
+    pub ccm_budget_bytes: Option<u64>,
 }
 
 impl PlacementChoice {
@@ -1005,9 +1045,13 @@ impl PlacementChoice {
             Placement::Sram => "SRAM",
             Placement::Flash => "flash",
         };
-        let budget = match self.sram_budget_bytes {
-            Some(b) => format!("SRAM budget for the model {b} bytes"),
-            None => "no budget file".to_string(),
+        // The CCM SRAM budget is named where the choice used it.
+        let budget = match (self.sram_budget_bytes, self.ccm_budget_bytes) {
+            (Some(b), Some(c)) if self.gate_blocks_in_ccm > 0 => {
+                format!("SRAM budget for the model {b} bytes, CCM SRAM budget {c} bytes")
+            }
+            (Some(b), _) => format!("SRAM budget for the model {b} bytes"),
+            (None, _) => "no budget file".to_string(),
         };
         let tables = match self.act_tables {
             Some(p) => format!(
@@ -1017,12 +1061,19 @@ impl PlacementChoice {
             ),
             None => "no activation tables (f32)".to_string(),
         };
-        let split = match self.gate_blocks_in_sram {
-            0 => String::new(),
-            k => format!(
+        let split = match (self.gate_blocks_in_sram, self.gate_blocks_in_ccm) {
+            (0, 0) => String::new(),
+            (k, 0) => format!(
                 " (its gate matrix's first {k} of {} blocks, {} bytes, in SRAM)",
                 self.bytes.gate_blocks,
                 k * self.bytes.gate_block
+            ),
+            (k, m) => format!(
+                " (its gate matrix's first {k} of {} blocks, {} bytes, in SRAM, the next {m}, \
+                 {} bytes, in CCM SRAM)",
+                self.bytes.gate_blocks,
+                k * self.bytes.gate_block,
+                m * self.bytes.gate_block
             ),
         };
         format!(
@@ -1051,16 +1102,37 @@ pub struct SramBudget {
     /// RAM of the board firmware's own static data and buffers
     /// (`binary.board.firmware_ram_bytes`) [bytes].
     pub firmware_ram_bytes: u64,
+    /// Length of the `CCMRAM` region in the memory layout [bytes] (0 without one).
+    pub layout_ccm_bytes: u64,
+    /// CCM SRAM kept for the per-tick code (`binary.board.ccm_code_reserve_bytes`)
+    /// [bytes]; without the field no model data goes to CCM SRAM.
+    pub ccm_code_reserve_bytes: Option<u64>,
+}
+
+/// What the board leaves for a model's arrays: SRAM and CCM SRAM [bytes].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ModelBudget {
+    /// SRAM (`.data`).
+    pub sram_bytes: u64,
+    /// CCM SRAM beside the per-tick code (`.ccmram_data`).
+    pub ccm_bytes: u64,
 }
 
 impl SramBudget {
-    /// Bytes left for the model's arrays: the smaller of the two RAM sizes, less the
-    /// stack reserve and the firmware's own static RAM.
-    pub fn model_bytes(&self) -> u64 {
-        self.layout_ram_bytes
-            .min(self.ram_limit_bytes)
-            .saturating_sub(self.stack_reserve_bytes)
-            .saturating_sub(self.firmware_ram_bytes)
+    /// Bytes left for the model's arrays: in SRAM the smaller of the two RAM sizes,
+    /// less the stack reserve and the firmware's own static RAM; in CCM SRAM the
+    /// region's length less the code reserve (0 without either).
+    pub fn model_bytes(&self) -> ModelBudget {
+        ModelBudget {
+            sram_bytes: self
+                .layout_ram_bytes
+                .min(self.ram_limit_bytes)
+                .saturating_sub(self.stack_reserve_bytes)
+                .saturating_sub(self.firmware_ram_bytes),
+            ccm_bytes: self
+                .ccm_code_reserve_bytes
+                .map_or(0, |r| self.layout_ccm_bytes.saturating_sub(r)),
+        }
     }
 }
 
@@ -1068,12 +1140,18 @@ impl SramBudget {
 /// `RAM : ORIGIN = ..., LENGTH = 96K` (decimal or `0x` hex, optional `K` or `M`).
 /// Errors name the line.
 pub fn layout_ram_bytes(text: &str) -> Result<u64, String> {
+    layout_region_bytes(text, "RAM")?.ok_or_else(|| "no RAM region".into())
+}
+
+/// Length in bytes of the region `name` of a linker memory layout (`memory.x`), `None`
+/// when the layout has no such region. Errors name the line.
+pub fn layout_region_bytes(text: &str, name: &str) -> Result<Option<u64>, String> {
     for (k, line) in text.lines().enumerate() {
         let code = line.split("/*").next().unwrap_or("");
-        let Some((name, rest)) = code.split_once(':') else {
+        let Some((region, rest)) = code.split_once(':') else {
             continue;
         };
-        if name.trim() != "RAM" {
+        if region.trim() != name {
             continue;
         }
         let length = rest
@@ -1081,11 +1159,15 @@ pub fn layout_ram_bytes(text: &str) -> Result<u64, String> {
             .filter_map(|f| f.split_once('='))
             .find(|(key, _)| key.trim() == "LENGTH")
             .map(|(_, v)| v.trim())
-            .ok_or_else(|| format!("line {}: region RAM has no LENGTH", k + 1))?;
-        return parse_layout_size(length)
-            .ok_or_else(|| format!("line {}: field LENGTH of region RAM is not a size", k + 1));
+            .ok_or_else(|| format!("line {}: region {name} has no LENGTH", k + 1))?;
+        return parse_layout_size(length).map(Some).ok_or_else(|| {
+            format!(
+                "line {}: field LENGTH of region {name} is not a size",
+                k + 1
+            )
+        });
     }
-    Err("no RAM region".into())
+    Ok(None)
 }
 
 fn parse_layout_size(v: &str) -> Option<u64> {
@@ -1253,7 +1335,7 @@ fn input_layer_type(a: InputActivation) -> &'static str {
 
 /// `head_blocks`: how many blocks of the gate matrix go to `GATES_HEAD` (placed by
 /// `head_section`); the rest go to `GATES_TAIL`, placed with the network (`section`).
-fn write_f32(s: &mut String, section: &str, head_section: &str, head_blocks: usize, n: &F32Net) {
+fn write_f32(s: &mut String, section: &str, head_section: &str, split: [usize; 2], n: &F32Net) {
     let d = n.dims;
     let (i, eb, h, o, ob) = (d.input, d.embed_blocks, d.hidden, d.output, d.output_blocks);
     let e = 4 * eb;
@@ -1270,8 +1352,10 @@ fn write_f32(s: &mut String, section: &str, head_section: &str, head_blocks: usi
     );
     let _ = writeln!(s, "/// The network's recurrent state.");
     let _ = writeln!(s, "pub type State = F32State<{z}, {h}>;");
-    let head_blocks = head_blocks.min(h);
-    let (head, tail) = n.w_gates.split_at((head_blocks * z).min(n.w_gates.len()));
+    let head_blocks = split[0].min(h);
+    let middle_blocks = split[1].min(h - head_blocks);
+    let (head, rest) = n.w_gates.split_at((head_blocks * z).min(n.w_gates.len()));
+    let (middle, tail) = rest.split_at((middle_blocks * z).min(rest.len()));
     let _ = writeln!(
         s,
         "/// The gate matrix's first {head_blocks} blocks ({} bytes; `F32GateRows`).",
@@ -1286,22 +1370,34 @@ fn write_f32(s: &mut String, section: &str, head_section: &str, head_blocks: usi
     );
     let _ = writeln!(
         s,
-        "/// The gate matrix's other {} blocks ({} bytes).",
-        h - head_blocks,
-        tail.len() * 16
+        "/// The gate matrix's next {middle_blocks} blocks ({} bytes).",
+        middle.len() * 16
     );
     // An empty part needs no placement.
+    if !middle.is_empty() {
+        let _ = writeln!(s, "{CCM_SECTION_ATTRIBUTE}");
+    }
+    let _ = writeln!(
+        s,
+        "pub static GATES_MIDDLE: [[[f32; 4]; {z}]; {middle_blocks}] = {};",
+        nested(middle, z, v4)
+    );
+    let tail_blocks = h - head_blocks - middle_blocks;
+    let _ = writeln!(
+        s,
+        "/// The gate matrix's other {tail_blocks} blocks ({} bytes).",
+        tail.len() * 16
+    );
     let tail_section = if tail.is_empty() { "" } else { section };
     let _ = write!(s, "{tail_section}");
     let _ = writeln!(
         s,
-        "pub static GATES_TAIL: [[[f32; 4]; {z}]; {}] = {};",
-        h - head_blocks,
+        "pub static GATES_TAIL: [[[f32; 4]; {z}]; {tail_blocks}] = {};",
         nested(tail, z, v4)
     );
     let _ = writeln!(
         s,
-        "const _: () = assert!(GATES_HEAD.len() + GATES_TAIL.len() == {h}, \"the gate matrix has H blocks\");"
+        "const _: () = assert!(GATES_HEAD.len() + GATES_MIDDLE.len() + GATES_TAIL.len() == {h}, \"the gate matrix has H blocks\");"
     );
     let _ = writeln!(s, "/// The network.");
     let _ = write!(s, "{section}");
@@ -1321,7 +1417,7 @@ fn write_f32(s: &mut String, section: &str, head_section: &str, head_blocks: usi
     let _ = writeln!(s, "    input_layer: {layer},");
     let _ = writeln!(
         s,
-        "    w_gates: F32GateRows {{ head: &GATES_HEAD, tail: &GATES_TAIL }},"
+        "    w_gates: F32GateRows {{ head: &GATES_HEAD, middle: &GATES_MIDDLE, tail: &GATES_TAIL }},"
     );
     let _ = writeln!(s, "    b_gates: {},", list(&n.b_gates, v4));
     let _ = writeln!(s, "    w_out: {},", nested(&n.w_out, h, v4));
@@ -1640,15 +1736,19 @@ pub fn render(
     write_profiles(s, &meta.profiles);
     match net {
         Exported::F32(n) => {
-            // The whole gate matrix goes with the network, or its first blocks to SRAM.
-            let (head_section, head_blocks) = match meta.placement.network {
-                Placement::Sram => (network_section.clone(), n.dims.hidden),
+            // The whole gate matrix goes with the network, or its first blocks to SRAM
+            // and the next to CCM SRAM.
+            let (head_section, split) = match meta.placement.network {
+                Placement::Sram => (network_section.clone(), [n.dims.hidden, 0]),
                 Placement::Flash => (
                     attribute(Placement::Sram),
-                    meta.placement.gate_blocks_in_sram,
+                    [
+                        meta.placement.gate_blocks_in_sram,
+                        meta.placement.gate_blocks_in_ccm,
+                    ],
                 ),
             };
-            write_f32(s, &network_section, &head_section, head_blocks, n)
+            write_f32(s, &network_section, &head_section, split, n)
         }
         Exported::Int16(n) => write_quant(s, &network_section, tables, n, "I16Weights", quads_i16),
         Exported::Int8(n) => write_quant(s, &network_section, tables, n, "I8Weights", quads_i8),
@@ -1814,9 +1914,16 @@ mod tests {
         gate_block: 0,
         gate_blocks: 0,
     };
-    const BUDGET: Option<u64> = Some(73_728);
+    const BUDGET: Option<ModelBudget> = Some(ModelBudget {
+        sram_bytes: 73_728,
+        ccm_bytes: 0,
+    });
 
-    fn tables(want: WeightsIn, bytes: ModelBytes, budget: Option<u64>) -> Option<Placement> {
+    fn tables(
+        want: WeightsIn,
+        bytes: ModelBytes,
+        budget: Option<ModelBudget>,
+    ) -> Option<Placement> {
         choose_placement(want, bytes, budget)
             .expect("placement")
             .act_tables
@@ -1893,15 +2000,39 @@ mod tests {
             (p.network, p.dynamics, p.linear_stage, p.gate_blocks_in_sram),
             (Placement::Flash, Placement::Sram, Placement::Sram, 35)
         );
+        assert_eq!(p.gate_blocks_in_ccm, 0);
         assert!(
             p.describe()
                 .contains("(its gate matrix's first 35 of 64 blocks, 71680 bytes, in SRAM)"),
             "{}",
             p.describe()
         );
+        // With CCM SRAM beside the code: the next blocks go there (24 576 / 2 048 = 12;
+        // up to 26 623 B still 12: whole blocks).
+        for ccm_bytes in [24_576, 25_000, 26_623] {
+            let budget = Some(ModelBudget {
+                sram_bytes: 73_728,
+                ccm_bytes,
+            });
+            let p = choose_placement(WeightsIn::Auto, paper_f32, budget).expect("placement");
+            assert_eq!((p.gate_blocks_in_sram, p.gate_blocks_in_ccm), (35, 12));
+            assert!(
+                p.describe()
+                    .contains("71680 bytes, in SRAM, the next 12, 24576 bytes, in CCM SRAM)"),
+                "{}",
+                p.describe()
+            );
+        }
+        // Never more blocks than the matrix has.
+        let huge = Some(ModelBudget {
+            sram_bytes: 73_728,
+            ccm_bytes: 1 << 20,
+        });
+        let p = choose_placement(WeightsIn::Auto, paper_f32, huge).expect("placement");
+        assert_eq!((p.gate_blocks_in_sram, p.gate_blocks_in_ccm), (35, 29));
         for (want, budget) in [(WeightsIn::Flash, BUDGET), (WeightsIn::Auto, None)] {
             let p = choose_placement(want, paper_f32, budget).expect("placement");
-            assert_eq!(p.gate_blocks_in_sram, 0);
+            assert_eq!((p.gate_blocks_in_sram, p.gate_blocks_in_ccm), (0, 0));
         }
         // A network that fits keeps its gate matrix whole (with the network).
         let small = ModelBytes {
@@ -1913,7 +2044,43 @@ mod tests {
     }
 
     #[test]
-    fn the_generated_f32_network_splits_its_gate_matrix_between_two_statics() {
+    fn the_ccm_budget_is_the_ccmram_region_less_the_code_reserve() {
+        let layout = "MEMORY\n{\n  RAM : ORIGIN = 0x20000000, LENGTH = 96K\n  \
+                      CCMRAM : ORIGIN = 0x10000000, LENGTH = 32K /* CCMRAM: LENGTH = 1 */\n}\n";
+        assert_eq!(layout_region_bytes(layout, "CCMRAM"), Ok(Some(32 * 1024)));
+        assert_eq!(layout_region_bytes(layout, "FLASH"), Ok(None));
+        assert!(
+            layout_region_bytes("CCMRAM : ORIGIN = 0, LENGTH = x", "CCMRAM")
+                .is_err_and(|e| e.contains("line 1") && e.contains("CCMRAM"))
+        );
+        let mut b = SramBudget {
+            layout_ram_bytes: 96 * 1024,
+            ram_limit_bytes: 98_304,
+            stack_reserve_bytes: 16_384,
+            firmware_ram_bytes: 8_192,
+            layout_ccm_bytes: 32 * 1024,
+            ccm_code_reserve_bytes: Some(8_192),
+        };
+        assert_eq!(
+            b.model_bytes(),
+            ModelBudget {
+                sram_bytes: 73_728,
+                ccm_bytes: 24_576
+            }
+        );
+        // Without the reserve in the budget file, nothing goes to CCM SRAM.
+        b.ccm_code_reserve_bytes = None;
+        assert_eq!(b.model_bytes().ccm_bytes, 0);
+        // The board's own budget file and memory layout.
+        let file =
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../host-tests/budgets.toml");
+        let board = sram_budget(&file).expect("budget file");
+        assert_eq!(board.layout_ccm_bytes, 32 * 1024);
+        assert!(board.model_bytes().ccm_bytes > 0);
+    }
+
+    #[test]
+    fn the_generated_f32_network_splits_its_gate_matrix_between_three_statics() {
         let m = LstmModel::init(
             LstmDims {
                 input: 3,
@@ -1925,18 +2092,25 @@ mod tests {
         );
         let net = F32Net::arrange(&m).expect("arranges");
         let sram = format!("{SRAM_SECTION_ATTRIBUTE}\n");
+        let ccm = format!("{CCM_SECTION_ATTRIBUTE}\n");
         let mut s = String::new();
-        write_f32(&mut s, "", &sram, 3, &net);
+        write_f32(&mut s, "", &sram, [3, 2], &net);
         assert!(s.contains(&format!(
             "{sram}pub static GATES_HEAD: [[[f32; 4]; 12]; 3] = "
         )));
-        assert!(s.contains("\npub static GATES_TAIL: [[[f32; 4]; 12]; 5] = "));
+        assert!(s.contains(&format!(
+            "{ccm}pub static GATES_MIDDLE: [[[f32; 4]; 12]; 2] = "
+        )));
+        assert!(s.contains("\npub static GATES_TAIL: [[[f32; 4]; 12]; 3] = "));
         assert!(!s.contains(&format!("{sram}pub static GATES_TAIL")));
-        assert!(s.contains("w_gates: F32GateRows { head: &GATES_HEAD, tail: &GATES_TAIL },"));
-        // Nothing in SRAM: no attribute for the empty head.
+        assert!(s.contains(
+            "w_gates: F32GateRows { head: &GATES_HEAD, middle: &GATES_MIDDLE, tail: &GATES_TAIL },"
+        ));
+        // Nothing in SRAM or CCM SRAM: no attribute for the empty parts.
         let mut s = String::new();
-        write_f32(&mut s, "", "", 0, &net);
+        write_f32(&mut s, "", "", [0, 0], &net);
         assert!(s.contains("pub static GATES_HEAD: [[[f32; 4]; 12]; 0] = [];"));
+        assert!(s.contains("pub static GATES_MIDDLE: [[[f32; 4]; 12]; 0] = [];"));
         assert!(!s.contains("link_section"));
         assert_eq!(Exported::F32(net).gate_blocks(), (12 * 16, 8));
     }

@@ -83,8 +83,8 @@ pub enum HostNetwork {
 
 /// The recurrent state and scratch of a [`HostNetwork`].
 pub enum HostState {
-    /// f32: `z`, `c`, normalised input, new `h`, gate accumulators.
-    F32(Vec<f32>, Vec<f32>, Vec<f32>, Vec<f32>, Vec<[f32; 4]>),
+    /// f32: `z`, `c`, normalised input, gate accumulators.
+    F32(Vec<f32>, Vec<f32>, Vec<f32>, Vec<[f32; 4]>),
     /// int16: `z`, `c`, quantised input, new `h`, gate accumulators.
     Int16(
         Vec<[u32; 2]>,
@@ -105,7 +105,6 @@ impl<const I: usize, const O: usize> TorqueNetwork<I, O> for HostNetwork {
                     vec![0.0; 4 * d.embed_blocks + d.hidden],
                     vec![0.0; d.hidden],
                     vec![0.0; d.input],
-                    vec![0.0; d.hidden],
                     vec![[0.0; 4]; d.hidden],
                 )
             }
@@ -124,10 +123,10 @@ impl<const I: usize, const O: usize> TorqueNetwork<I, O> for HostNetwork {
     fn step(&self, state: &mut HostState, input: &[f32; I]) -> [f32; O] {
         let mut y = [f32::NAN; O];
         match (self, state) {
-            (HostNetwork::F32(n), HostState::F32(z, c, xn, hn, acc))
+            (HostNetwork::F32(n), HostState::F32(z, c, xn, acc))
                 if n.dims.input == I && n.dims.output == O =>
             {
-                n.view().step(z, c, xn, hn, acc, input, &mut y);
+                n.view().step(z, c, xn, acc, input, &mut y);
             }
             (HostNetwork::Int16(n), HostState::Int16(z, c, xq, hn, acc))
                 if n.dims.input == I && n.dims.output == O =>

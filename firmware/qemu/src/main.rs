@@ -87,6 +87,19 @@ fn main() -> ! {
     }
     out.line(format_args!("@end dot"));
 
+    out.line(format_args!("@suite cells {}", 10 * golden::CELL_CASES));
+    let (c, h, t, m) = golden::cells_output();
+    for j in 0..golden::CELL_CASES {
+        out.line(format_args!("c {} {:08x} {:08x}", j, j as u32, c[j].to_bits()));
+        out.line(format_args!("h {} {:08x} {:08x}", j, j as u32, h[j].to_bits()));
+        for r in 0..4 {
+            let k = 4 * j + r;
+            out.line(format_args!("t {} {:08x} {:08x}", k, k as u32, t[j][r].to_bits()));
+            out.line(format_args!("m {} {:08x} {:08x}", k, k as u32, m[j][r].to_bits()));
+        }
+    }
+    out.line(format_args!("@end cells"));
+
     out.line(format_args!(
         "@suite features {}",
         golden::FEATURE_CASES * golden::FEATURE_VALUES

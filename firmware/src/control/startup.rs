@@ -2,8 +2,8 @@
 //! so that one firmware image serves every compensated joint of a robot.
 //!
 //! The block lives in its own flash page (the board's `memory.x` reserves the last
-//! 2 KiB page, `BOARD_CONFIG`, which the firmware image never covers, so flashing a new
-//! image keeps it). Layout ([`JointConfigBlock::LEN`] = 16 bytes, little-endian):
+//! 2 KiB, `BOARD_CONFIG`, in the last 4 KiB page of the single-bank flash, which the
+//! firmware image never covers, so flashing a new image keeps it). Layout ([`JointConfigBlock::LEN`] = 16 bytes, little-endian):
 //!
 //! | bytes | field |
 //! |---|---|

@@ -534,9 +534,12 @@ pub struct F32View<'a> {
     /// Activation after the input layer.
     pub input_activation: InputActivation,
     /// The first blocks of the gate matrix (`[HS * Z]`, `Z = E + H`): with
-    /// [`Self::w_gates_tail`] the `[H * Z]` gate matrix ([`F32GateRows`]).
+    /// [`Self::w_gates_middle`] and [`Self::w_gates_tail`] the `[H * Z]` gate matrix
+    /// ([`F32GateRows`]).
     pub w_gates: &'a [[f32; 4]],
-    /// The other `H - HS` blocks of the gate matrix (`[(H - HS) * Z]`).
+    /// The next `HM` blocks of the gate matrix (`[HM * Z]`).
+    pub w_gates_middle: &'a [[f32; 4]],
+    /// The other `H - HS - HM` blocks of the gate matrix (`[(H - HS - HM) * Z]`).
     pub w_gates_tail: &'a [[f32; 4]],
     /// `[H]`
     pub b_gates: &'a [[f32; 4]],
@@ -570,7 +573,7 @@ impl F32View<'_> {
             (
                 "w_gates",
                 d.hidden * z,
-                self.w_gates.len() + self.w_gates_tail.len(),
+                self.w_gates.len() + self.w_gates_middle.len() + self.w_gates_tail.len(),
             ),
             ("b_gates", d.hidden, self.b_gates.len()),
             ("w_out", d.output_blocks * d.hidden, self.w_out.len()),
@@ -584,17 +587,14 @@ impl F32View<'_> {
         lens.iter().find(|(_, e, a)| e != a).map(|(n, _, _)| *n)
     }
 
-    /// The kernel: one step. `z` (`E + H`) and `c` (`H`) are the state, `xn` (`I`),
-    /// `h_new` (`H`) and `acc` (`H` blocks) scratch. Lengths are trusted (never a
-    /// panic).
-    #[allow(clippy::too_many_arguments)]
+    /// The kernel: one step. `z` (`E + H`) and `c` (`H`) are the state, `xn` (`I`)
+    /// and `acc` (`H` blocks) scratch. Lengths are trusted (never a panic).
     #[inline(always)]
     pub fn step(
         &self,
         z: &mut [f32],
         c: &mut [f32],
         xn: &mut [f32],
-        h_new: &mut [f32],
         acc: &mut [[f32; 4]],
         input: &[f32],
         out: &mut [f32],
@@ -615,45 +615,32 @@ impl F32View<'_> {
         let (z4, _) = z.as_chunks_mut::<4>();
         let e4 = z4.get_mut(..d.embed_blocks).unwrap_or_default();
         dsp::matvec4_f32(e4, self.w_in, xn);
-        let linear = self.input_activation.is_linear();
-        for (e, b) in e4.iter_mut().zip(self.b_in) {
-            let v = [e[0] + b[0], e[1] + b[1], e[2] + b[2], e[3] + b[3]];
-            *e = if linear { v } else { math::tanh_fast4(v) };
+        if self.input_activation.is_linear() {
+            for (e, b) in e4.iter_mut().zip(self.b_in) {
+                *e = [e[0] + b[0], e[1] + b[1], e[2] + b[2], e[3] + b[3]];
+            }
+        } else {
+            dsp::tanh4_bias_f32(e4, self.b_in);
         }
         // LSTM gates: the whole layer in one kernel call per part of the gate matrix
         // (each block only reads its own rows), then the cells.
         let z_in: &[f32] = z;
         dsp::matvec4_f32_parts(
             acc,
-            self.w_gates,
-            self.w_gates_tail,
+            [self.w_gates, self.w_gates_middle, self.w_gates_tail],
             z_in.get(..e_len + d.hidden).unwrap_or(z_in),
         );
         let acc: &[[f32; 4]] = acc;
-        // The cells: first each cell's gates and new c (`h_new` holds o for now), then
-        // h = o tanh(c) four cells at a time (the same bits as one at a time).
-        let rows = acc.iter().zip(self.b_gates);
-        for (((acc, b), cj), hn) in rows.zip(c.iter_mut()).zip(h_new.iter_mut()) {
-            let [i, f, g, o] =
-                math::lstm_gates_fast([acc[0] + b[0], acc[1] + b[1], acc[2] + b[2], acc[3] + b[3]]);
-            *cj = f * *cj + i * g;
-            *hn = o;
-        }
+        // The gate layer has read h: the cells write the new h in its place in z. First
+        // each cell's gates and new c (h holds o for now), then h = o tanh(c) four
+        // cells at a time (the same bits as one at a time).
+        let h_new = z.get_mut(e_len..).unwrap_or_default();
+        dsp::lstm_cells_f32(acc, self.b_gates, c, h_new);
         let (c4, c_rest) = c.as_chunks::<4>();
         let (h4, h_rest) = h_new.as_chunks_mut::<4>();
-        for (cs, hs) in c4.iter().zip(h4.iter_mut()) {
-            let t = math::tanh_fast4(*cs);
-            for (h, t) in hs.iter_mut().zip(t) {
-                *h *= t;
-            }
-        }
+        dsp::mul_tanh4_f32(h4, c4);
         for (cj, hn) in c_rest.iter().zip(h_rest.iter_mut()) {
             *hn *= math::tanh_fast(*cj);
-        }
-        if let Some(hz) = z.get_mut(e_len..) {
-            for (dst, src) in hz.iter_mut().zip(h_new.iter()) {
-                *dst = *src;
-            }
         }
         let h_new: &[f32] = h_new;
         let mut ys = out.iter_mut();
@@ -698,16 +685,18 @@ impl InputLayer for LinearInput {
 }
 
 /// The gate matrix of a compiled-in f32 network, `H` blocks over `Z` columns (block
-/// `j` = rows `i_j, f_j, g_j, o_j`, column-interleaved), as two statics so that the
-/// exporter can place them apart: the first blocks (`head`) in SRAM and the rest
-/// (`tail`) in flash when the whole matrix does not fit the board's SRAM budget (one
-/// of them is empty otherwise). The generated file asserts at compile time that
-/// together they hold `H` blocks.
+/// `j` = rows `i_j, f_j, g_j, o_j`, column-interleaved), as three statics so that the
+/// exporter can place them apart: when the whole matrix does not fit the board's SRAM
+/// budget, the first blocks (`head`) in SRAM, the next (`middle`) in CCM SRAM and the
+/// rest (`tail`) in flash (unused parts are empty). The generated file asserts at
+/// compile time that together they hold `H` blocks.
 #[derive(Clone, Copy, Debug)]
 pub struct F32GateRows<const Z: usize> {
     /// Blocks `0..HS`.
     pub head: &'static [[[f32; 4]; Z]],
-    /// Blocks `HS..H`.
+    /// Blocks `HS..HS + HM`.
+    pub middle: &'static [[[f32; 4]; Z]],
+    /// Blocks `HS + HM..H`.
     pub tail: &'static [[[f32; 4]; Z]],
 }
 
@@ -828,6 +817,7 @@ impl<
             b_in: &self.b_in,
             input_activation: A::ACTIVATION,
             w_gates: self.w_gates.head.as_flattened(),
+            w_gates_middle: self.w_gates.middle.as_flattened(),
             w_gates_tail: self.w_gates.tail.as_flattened(),
             b_gates: &self.b_gates,
             w_out: self.w_out.as_flattened(),
@@ -844,13 +834,11 @@ impl<
     pub fn step(&self, state: &mut F32State<Z, H>, input: &[f32; I]) -> [f32; O] {
         let () = Self::SHAPE;
         let mut xn = [0.0f32; I];
-        let mut h_new = [0.0f32; H];
         let mut out = [0.0f32; O];
         self.view().step(
             &mut state.z,
             &mut state.c,
             &mut xn,
-            &mut h_new,
             &mut state.acc,
             input,
             &mut out,

@@ -4,7 +4,7 @@
 //! stall, and compares the STM32G474 figure with `host-tests/budgets.toml`.
 //!
 //! `cargo run -p host-tests --bin budget [-- --json] [--budgets FILE]
-//! [--opt-level 2|3|s|z] [--pipeline-refill P] [--wait-states N] [--single-bank]
+//! [--opt-level 2|3|s|z] [--pipeline-refill P] [--wait-states N] [--dual-bank]
 //! [--no-fpu-stall] [--per-instruction WORKLOAD]`; exits 1 when a budget is exceeded.
 //! `--per-instruction WORKLOAD` prints that workload's worst STM32G474 tick per
 //! instruction (tab-separated) instead of the table.
@@ -39,13 +39,13 @@ fn run() -> Result<bool> {
             "--opt-level" => opts.opt_level = Some(value()?),
             "--pipeline-refill" => opts.model.pipeline_refill = value()?.parse()?,
             "--wait-states" => opts.chip.flash.wait_states = value()?.parse()?,
-            "--single-bank" => opts.chip.flash.read_bytes = 16,
+            "--dual-bank" => opts.chip.flash.read_bytes = 8,
             "--no-fpu-stall" => opts.chip.fpu_result_stall = false,
             "--per-instruction" => per_instruction = Some(value()?),
             "-h" | "--help" => {
                 println!(
                     "usage: budget [--json] [--json-file FILE] [--budgets FILE] [--opt-level 2|3|s|z] \
-                     [--pipeline-refill P] [--wait-states N] [--single-bank] [--no-fpu-stall] \
+                     [--pipeline-refill P] [--wait-states N] [--dual-bank] [--no-fpu-stall] \
                      [--per-instruction WORKLOAD]"
                 );
                 return Ok(true);
