@@ -42,28 +42,11 @@ const LN2_LO: f32 = -2.121_944_4e-4;
 
 /// The constants of [`lstm_gates_fast`] in the order `dsp::lstm_cells_f32`'s assembly
 /// loads them: the clamp -87, -log2 e, 0.5 (also P5), ln 2 high and low parts, P0-P4,
-/// 1 and the tanh clamp 9.
+/// 1 and the tanh clamp 9; all but the first are [`tanh_fast4`]'s, in the order
+/// `dsp::mul_tanh4_f32`'s and `dsp::tanh4_bias_f32`'s assembly loads them.
 #[cfg_attr(not(fw_dsp_asm), allow(dead_code))]
 pub(crate) static LSTM_CELL_CONSTANTS: [f32; 12] = [
     -87.0,
-    -core::f32::consts::LOG2_E,
-    0.5,
-    LN2_HI,
-    LN2_LO,
-    EXP_P0,
-    EXP_P1,
-    EXP_P2,
-    EXP_P3,
-    EXP_P4,
-    1.0,
-    9.0,
-];
-
-/// The constants of [`tanh_fast4`] in the order `dsp::mul_tanh4_f32`'s and
-/// `dsp::tanh4_bias_f32`'s assembly loads them: -log2 e, 0.5 (also P5), ln 2 high and
-/// low parts, P0-P4, 1 and the clamp 9.
-#[cfg_attr(not(fw_dsp_asm), allow(dead_code))]
-pub(crate) static TANH_CONSTANTS: [f32; 11] = [
     -core::f32::consts::LOG2_E,
     0.5,
     LN2_HI,
