@@ -108,9 +108,14 @@ fn ci_bench_problem(root: &Path, command: &str) -> Option<String> {
     let Some(dir) = package_dir(root, package) else {
         return Some(format!("no workspace package `{package}`"));
     };
-    let manifest: toml::Value = std::fs::read_to_string(dir.join("Cargo.toml"))
-        .ok()
-        .and_then(|t| toml::from_str(&t).ok())?;
+    let path = dir.join("Cargo.toml");
+    let manifest: toml::Value = match std::fs::read_to_string(&path)
+        .map_err(|e| e.to_string())
+        .and_then(|t| toml::from_str(&t).map_err(|e| e.to_string()))
+    {
+        Ok(m) => m,
+        Err(e) => return Some(format!("{}: {e}", path.display())),
+    };
     let smoke_tested = manifest
         .get("bench")
         .and_then(|b| b.as_array())

@@ -7,7 +7,7 @@
 //! options kept, placeholders filled (each test says which).
 //! `xtask/readme-commands.toml` names these tests as their runners.
 
-use test_support::readme::{ReadmeCommand, readme_commands, run_ok};
+use test_support::readme::{ReadmeCommand, readme_command, run_ok};
 use test_support::workspace_root;
 
 /// `c` in the dev profile: `--release` and `--profile host` dropped, brackets dropped.
@@ -18,19 +18,12 @@ fn dev_profile(c: &ReadmeCommand) -> String {
         .replace(['[', ']'], "")
 }
 
-/// The one command of `readme` equal to `command`.
-fn the(readme: &str, command: &str) -> ReadmeCommand {
-    let found = readme_commands(readme, |c| c == command);
-    assert!(!found.is_empty(), "{readme}: no `{command}`");
-    found[0].clone()
-}
-
 /// `model-export sil` (sil and firmware READMEs, 2 s of simulated time instead of the
 /// 30 s default) and `plant-report --ablation` (plant-sim README) through `cargo run`.
 #[test]
 fn cargo_run_model_export_lines_run() {
     let root = workspace_root();
-    let c = the(
+    let c = readme_command(
         "crates/sil/README.md",
         "cargo run --release -p model-export -- sil [--seconds 5] [--seed 7]",
     );
@@ -40,12 +33,12 @@ fn cargo_run_model_export_lines_run() {
         root,
         &[],
     );
-    let c = the(
+    let c = readme_command(
         "firmware/README.md",
         "cargo run --release -p model-export -- sil",
     );
     run_ok(&c, &format!("{} --seconds 2", dev_profile(&c)), root, &[]);
-    let c = the(
+    let c = readme_command(
         "crates/plant-sim/README.md",
         "cargo run --release -p model-export -- plant-report --ablation",
     );
@@ -58,7 +51,7 @@ fn cargo_run_model_export_lines_run() {
 #[test]
 fn model_export_examples_run() {
     let root = workspace_root();
-    let c = the(
+    let c = readme_command(
         "crates/robot/README.md",
         "cargo run -p model-export --example base_parameters -- ROBOT [--rigid] [--paper]",
     );
@@ -68,12 +61,12 @@ fn model_export_examples_run() {
         root,
         &[],
     );
-    let c = the(
+    let c = readme_command(
         "crates/compnet/README.md",
         "cargo run --release -p model-export --example gemm_shapes",
     );
     run_ok(&c, &dev_profile(&c), root, &[]);
-    let c = the(
+    let c = readme_command(
         "crates/excitation/README.md",
         "cargo run --profile host -p model-export --example excite_probe -- floors",
     );
@@ -93,7 +86,7 @@ fn bench_torch_script_runs_where_torch_is_installed() {
         println!("skipped: python3 cannot import torch");
         return;
     }
-    let c = the(
+    let c = readme_command(
         "crates/compnet/README.md",
         "python3 scripts/bench_torch.py --burn-in 0 --threads 1",
     );
@@ -110,7 +103,7 @@ fn bench_torch_script_runs_where_torch_is_installed() {
 /// workspace's own build alone): it builds and writes cargo's timing report.
 #[test]
 fn onnx_protobuf_build_timing_line_runs() {
-    let c = the(
+    let c = readme_command(
         "crates/compnet/README.md",
         "cargo clean -p onnx-protobuf -p protobuf -p protobuf-support && cargo build -p onnx-protobuf --timings",
     );

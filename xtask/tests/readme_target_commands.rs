@@ -8,15 +8,8 @@
 //! `xtask/readme-commands.toml` names these tests as their runners.
 
 use std::path::{Path, PathBuf};
-use test_support::readme::{ReadmeCommand, readme_commands, run_ok, run_shell};
+use test_support::readme::{ReadmeCommand, readme_command, readme_commands, run_ok, run_shell};
 use test_support::{has_program, target_tools_or_skip, workspace_root};
-
-/// The one command of `readme` equal to `command`.
-fn the(readme: &str, command: &str) -> ReadmeCommand {
-    let found = readme_commands(readme, |c| c == command);
-    assert_eq!(found.len().min(1), 1, "{readme}: no `{command}`");
-    found[0].clone()
-}
 
 /// `c` as written, from the workspace root.
 fn run_at_root(c: &ReadmeCommand) {
@@ -53,7 +46,7 @@ fn firmware_target_commands_run_as_written() {
             "cargo build --release --target thumbv7em-none-eabihf -p board --bin board --features defmt",
         ),
     ] {
-        run_at_root(&the(readme, command));
+        run_at_root(&readme_command(readme, command));
     }
     let dir = tempfile::tempdir().unwrap();
     for (readme, command) in [
@@ -64,17 +57,17 @@ fn firmware_target_commands_run_as_written() {
             "cargo run -p host-tests --bin budget -- --json",
         ),
     ] {
-        let c = the(readme, command);
+        let c = readme_command(readme, command);
         run_budget(&c, &c.command, &[]);
     }
-    let c = the(
+    let c = readme_command(
         "README.md",
         "cargo run -p host-tests --bin budget -- --opt-level LEVEL --json",
     );
     run_budget(&c, &c.command.replace("LEVEL", "2"), &[]);
     let model = workspace_root().join("firmware/src/model/default_model.rs");
     let json = dir.path().join("budget.json");
-    let c = the(
+    let c = readme_command(
         "host-tests/README.md",
         "FIRMWARE_MODEL=… cargo run --quiet --target-dir target/demo -p host-tests --bin budget -- --json-file …",
     );
@@ -98,7 +91,7 @@ fn xtask_demo_runs_with_the_firmware_stages() {
     }
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("report");
-    let c = the("README.md", "cargo xtask demo");
+    let c = readme_command("README.md", "cargo xtask demo");
     let command = format!(
         "{} demo --fast --out {}",
         env!("CARGO_BIN_EXE_xtask"),
@@ -163,7 +156,7 @@ fn board_commands_run_on_a_probe() {
         run_ok(&c, &c.command, dir.path(), &[]);
     }
     for command in ["cargo board-bench-run", "cargo board-run"] {
-        let c = the("README.md", command);
+        let c = readme_command("README.md", command);
         let code = run_shell(&format!("timeout 60 {command}"), workspace_root(), &[]);
         // 124: stopped by the timeout while logging, as it runs until stopped.
         assert!(
@@ -205,7 +198,7 @@ fn study_scripts_run_on_the_ur10e_logs() {
         ("D", data.display().to_string()),
         ("DATASETS_DIR", datasets),
     ];
-    let c = the("README.md", "bash scripts/ur10e_compensation.sh $D OUT_DIR");
+    let c = readme_command("README.md", "bash scripts/ur10e_compensation.sh $D OUT_DIR");
     run_ok(
         &c,
         &c.command.replace("OUT_DIR", &out.display().to_string()),
@@ -214,7 +207,7 @@ fn study_scripts_run_on_the_ur10e_logs() {
     );
     let summary = std::fs::read_to_string(out.join("summary.json")).expect("summary.json");
     assert!(summary.contains("drive"), "{summary}");
-    let c = the(
+    let c = readme_command(
         "crates/compnet/README.md",
         "bash scripts/ur10e_lstm.sh OUT_DIR",
     );
@@ -265,7 +258,7 @@ fn hal_compare_builds_and_measures() {
     for c in &lines {
         run_ok(c, &c.command, &here, &[]);
     }
-    let board = the("board/hal-compare/README.md", "cargo board-build");
+    let board = readme_command("board/hal-compare/README.md", "cargo board-build");
     run_at_root(&board);
     run_ok(
         &board,
@@ -287,7 +280,7 @@ fn cargo_fuzz_runs_with_nightly() {
         println!("skipped: `cargo +nightly fuzz` needs a nightly toolchain and cargo-fuzz");
         return;
     }
-    let c = the("model-export/README.md", "cargo +nightly fuzz run log_csv");
+    let c = readme_command("model-export/README.md", "cargo +nightly fuzz run log_csv");
     run_ok(
         &c,
         &format!("{} -- -max_total_time=20", c.command),

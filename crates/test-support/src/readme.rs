@@ -269,6 +269,14 @@ fn find_closing(s: &str, delim: &str) -> Option<usize> {
     None
 }
 
+/// The first command of `readme` equal to `command`; panics when there is none (a
+/// README that changed must change its test too).
+pub fn readme_command(readme: &str, command: &str) -> ReadmeCommand {
+    let found = readme_commands(readme, |c| c == command);
+    assert!(!found.is_empty(), "{readme}: no `{command}`");
+    found[0].clone()
+}
+
 /// The commands of `readme` (relative to the workspace root) that `pick` selects, in line
 /// order; panics when the README cannot be read.
 pub fn readme_commands(readme: &str, pick: impl Fn(&str) -> bool) -> Vec<ReadmeCommand> {
