@@ -280,7 +280,7 @@ mod app {
                 let pwm_faults = PWM_FAULTS.swap(0, Ordering::Relaxed);
                 let comp = comp_cycles.take();
                 firmware::fw_info!(
-                    "tick {=u32}: PWM tick max {=u32} cycles; compensator tick min/mean/max {=u32}/{=u32}/{=u32} cycles (DWT CYCCNT, measured); faults pwm {=u32:#06x} comp {=u16:#06x}; ff {=f32} A",
+                    "tick {=u32}: PWM tick max {=u32} cycles; compensator tick min/mean/max {=u32}/{=u32}/{=u32} cycles (DWT CYCCNT, measured); faults pwm {=u32:#06x} comp {=u32:#010x}; ff {=f32} A",
                     ticks,
                     pwm_cycles,
                     comp.min_cycles,
@@ -356,7 +356,7 @@ mod app {
         OWN_Q_RAD.store(out.q_rad.to_bits(), Ordering::Relaxed);
         OWN_QD_RAD_S.store(out.qd_rad_s.to_bits(), Ordering::Relaxed);
         OWN_IQ_A.store(out.iq_meas_a.to_bits(), Ordering::Relaxed);
-        PWM_FAULTS.fetch_or(out.faults.bits() as u32, Ordering::Relaxed);
+        PWM_FAULTS.fetch_or(out.faults.bits(), Ordering::Relaxed);
         let cycles = tick::cycles().wrapping_sub(start);
         PWM_TICK_MAX_CYCLES.fetch_max(cycles, Ordering::Relaxed);
     }

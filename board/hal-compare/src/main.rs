@@ -418,7 +418,7 @@ fn ADC1_2() {
     OWN_Q_RAD.store(out.q_rad.to_bits(), Ordering::Relaxed);
     OWN_QD_RAD_S.store(out.qd_rad_s.to_bits(), Ordering::Relaxed);
     OWN_IQ_A.store(out.iq_meas_a.to_bits(), Ordering::Relaxed);
-    PWM_FAULTS.fetch_or(out.faults.bits() as u32, Ordering::Relaxed);
+    PWM_FAULTS.fetch_or(out.faults.bits(), Ordering::Relaxed);
     let cycles = cortex_m::peripheral::DWT::cycle_count().wrapping_sub(start);
     PWM_TICK_MAX_CYCLES.fetch_max(cycles, Ordering::Relaxed);
 }

@@ -486,7 +486,7 @@ where
         rms_error_rad: runs[k].rms_error_rad,
         max_error_rad: runs[k].max_error_rad,
         rms_iq_a: runs[k].rms_iq_a,
-        fault_bits: runs[k].faults.bits() as u32,
+        fault_bits: runs[k].faults.bits(),
         source_ticks: runs[k].source_ticks,
         startup_fault: runs[k].startup.err().map(|f| format!("{f:?}")),
     }))
@@ -725,7 +725,7 @@ mod tests {
             // after the first tick, model + LSTM on every tick.
             assert_eq!(j.source_ticks, [1, 0, 39], "{j:?}");
             assert!(
-                !FaultFlags::from_bits(j.fault_bits as u16).intersects(bus),
+                !FaultFlags::from_bits(j.fault_bits).intersects(bus),
                 "{j:?}"
             );
             assert!(j.rms_error_rad < 2e-3, "{j:?}");
@@ -753,7 +753,7 @@ mod tests {
             // their feedforward falls back to zero, as on the board.
             for k in [0, 2] {
                 assert_eq!(r[k].startup_fault, None);
-                let f = FaultFlags::from_bits(r[k].fault_bits as u16);
+                let f = FaultFlags::from_bits(r[k].fault_bits);
                 assert!(f.contains(FaultFlags::STATE_STALE), "{:?}", r[k]);
                 assert_eq!(r[k].source_ticks, [30, 0, 0], "{:?}", r[k]);
             }

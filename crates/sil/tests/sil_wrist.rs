@@ -74,7 +74,7 @@ fn wrist_tracks_and_every_compensator_hears_the_others() {
         for r in [a, b] {
             assert!(r.rms_error_rad < 2e-3 && r.rms_error_rad > 0.0, "{r:?}");
             assert!(r.rms_iq_a.is_finite() && r.rms_iq_a > 0.0, "{r:?}");
-            let f = FaultFlags::from_bits(r.fault_bits as u16);
+            let f = FaultFlags::from_bits(r.fault_bits);
             assert!(!f.intersects(bus | drive), "{r:?}");
             // Only the first tick (before any frame arrived) has no feedforward.
             assert_eq!(r.source_ticks, [1, 149, 0], "{r:?}");

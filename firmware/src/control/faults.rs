@@ -1,10 +1,10 @@
-//! Named fault flags of the control loop: a bitflags-like `u16`.
+//! Named fault flags of the control loop: a bitflags-like `u32` (bits 0-15 the control loop's first set; bit 16 and up: the do-no-harm layer and the state bus).
 
 /// A set of named faults (one bit each). Each flag says why an output was limited,
 /// held or replaced by a safe value.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct FaultFlags(u16);
+pub struct FaultFlags(u32);
 
 impl FaultFlags {
     /// No fault.
@@ -51,7 +51,8 @@ impl FaultFlags {
     /// range and was replaced (reference held, feedforward zero).
     pub const REFERENCE_INVALID: Self = Self(1 << 15);
 
-    /// Every flag with its name, in bit order.
+    /// Every flag with its name, in bit order (new flags take the next bit and an
+    /// entry here).
     pub const NAMED: [(Self, &'static str); 16] = [
         (Self::STATE_REJECTED, "STATE_REJECTED"),
         (Self::STATE_STALE, "STATE_STALE"),
@@ -73,12 +74,12 @@ impl FaultFlags {
 
     /// The raw bits.
     #[inline]
-    pub const fn bits(self) -> u16 {
+    pub const fn bits(self) -> u32 {
         self.0
     }
     /// Flags from raw bits (every bit is named, so any value is valid).
     #[inline]
-    pub const fn from_bits(bits: u16) -> Self {
+    pub const fn from_bits(bits: u32) -> Self {
         Self(bits)
     }
     /// True when no flag is set.
@@ -154,12 +155,13 @@ mod tests {
 
     #[test]
     fn every_bit_has_one_name() {
-        let mut all = 0u16;
+        let mut all = 0u32;
         for (i, (flag, _)) in FaultFlags::NAMED.iter().enumerate() {
             assert_eq!(flag.bits(), 1 << i);
             all |= flag.bits();
         }
-        assert_eq!(all, u16::MAX);
+        // The named flags are the low bits, one each, none skipped.
+        assert_eq!(all, (1u32 << FaultFlags::NAMED.len()) - 1);
         let mut f = FaultFlags::NONE;
         f.insert(FaultFlags::STATE_STALE | FaultFlags::OVERCURRENT);
         assert!(f.contains(FaultFlags::STATE_STALE) && !f.contains(FaultFlags::LSTM_INVALID));
