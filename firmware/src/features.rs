@@ -14,6 +14,7 @@
 //! derives when it reads a dataset, [`MEASURED_RESIDUAL_COLUMN`]), so training and the
 //! drive see the same bits.
 
+use crate::envelope::JointEnvelope;
 use crate::math;
 
 /// Speed [rad/s] at or below which a joint counts as at rest.
@@ -164,13 +165,20 @@ pub fn joint_drive_inputs(
     core::array::from_fn(|kind| row.get(kind * joints + joint).copied().unwrap_or(0.0))
 }
 
-/// The linear stage's correction [N*m]: `coefficients . friction_features(x)`.
+/// The linear stage's correction [N*m]: `coefficients . friction_features(x)`, each
+/// feature first clamped to its range in the joint's training `envelope`
+/// ([`JointEnvelope::clamp_features`]), so that no term grows beyond its value at the
+/// envelope's edge.
 #[inline]
 pub fn linear_correction_nm(
     coefficients: &[f32; FRICTION_FEATURES],
+    envelope: &JointEnvelope,
     x: &[f32; DRIVE_INPUTS_PER_JOINT],
 ) -> f32 {
-    math::dot(coefficients, &friction_features(x))
+    math::dot(
+        coefficients,
+        &envelope.clamp_features(&friction_features(x)),
+    )
 }
 
 /// The direction of the last motion, remembered while a joint is at rest.
@@ -323,7 +331,14 @@ mod tests {
         let mut w = [0.0; FRICTION_FEATURES];
         w[1] = 2.0;
         w[0] = 0.5;
-        assert_eq!(linear_correction_nm(&w, &x), 0.5 + 2.0 * -5.0);
+        assert_eq!(
+            linear_correction_nm(&w, &JointEnvelope::UNBOUNDED, &x),
+            0.5 + 2.0 * -5.0
+        );
+        // Clamped to the envelope's range of tau_model: -1.
+        let mut e = JointEnvelope::UNBOUNDED;
+        e.friction[1] = crate::envelope::Range::new(-1.0, 1.0);
+        assert_eq!(linear_correction_nm(&w, &e, &x), 0.5 - 2.0);
     }
 
     #[test]

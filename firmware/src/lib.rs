@@ -4,7 +4,7 @@
 //! the host exporter and the tests call the same code that runs on the MCU, and
 //! `host-tests` proves the results are bit-identical on both. The modules in data-flow
 //! order: numerics (`math`, `dsp`), the rigid-body model (`dynamics`), the drive's
-//! features (`features`), the network (`nn`), the online friction adaptation
+//! features (`features`), the training envelope (`envelope`), the network (`nn`), the online friction adaptation
 //! (`adaptation`), the compiled-in model (`model`), the
 //! control loop (`control`), the encoder driver (`drivers`) and logging (`log`).
 #![cfg_attr(not(test), no_std)]
@@ -20,6 +20,7 @@ pub mod control;
 pub mod drivers;
 pub mod dsp;
 pub mod dynamics;
+pub mod envelope;
 pub mod features;
 pub mod log;
 pub mod math;

@@ -334,7 +334,11 @@ pub fn feature_output(case: usize) -> [f32; FEATURE_VALUES] {
     let f = features::friction_features(&x);
     let mut out = [0.0; FEATURE_VALUES];
     out[..features::FRICTION_FEATURES].copy_from_slice(&f);
-    out[features::FRICTION_FEATURES] = features::linear_correction_nm(&coefficients, &x);
+    out[features::FRICTION_FEATURES] = features::linear_correction_nm(
+        &coefficients,
+        &firmware::envelope::JointEnvelope::UNBOUNDED,
+        &x,
+    );
     let mut presliding = features::Presliding::new();
     let mut q = 2.0 * core::f32::consts::TAU * r(0);
     let mut state = presliding.update(q);

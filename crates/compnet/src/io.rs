@@ -155,6 +155,7 @@ pub fn parse_model_with(bytes: &[u8], input_activation: Option<&str>) -> Result<
             Ok(_) => shaped(LINEAR, &[o, firmware::features::FRICTION_FEATURES])?,
             Err(_) => Vec::new(),
         },
+        envelope: Vec::new(),
     };
     m.validate()?;
     // After the tensors: a file that is broken says so first.

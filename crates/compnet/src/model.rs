@@ -3,6 +3,7 @@
 use super::fused::FusedLstm;
 use anyhow::{Result, bail};
 use candle_core::{DType, Device, Tensor, Var};
+use firmware::envelope::JointEnvelope;
 use firmware::features::{self, DRIVE_INPUTS_PER_JOINT, FRICTION_FEATURES};
 use firmware::nn::format::InputActivation;
 use firmware::nn::reference::{LstmDims, LstmView};
@@ -66,6 +67,9 @@ pub struct LstmModel {
     /// coefficients [N*m per feature unit] of `firmware::features::FRICTION_FEATURE_NAMES`
     /// of that joint's inputs, added to the network's output; empty without one.
     pub linear: Vec<f32>,
+    /// Per output (compensated joint), the training envelope recorded over the training
+    /// datasets (`firmware::envelope`); empty: none recorded (an imported network).
+    pub envelope: Vec<JointEnvelope>,
 }
 
 impl LstmModel {
@@ -103,6 +107,7 @@ impl LstmModel {
             output_mean: vec![0.0; o],
             output_std: vec![1.0; o],
             linear: Vec::new(),
+            envelope: Vec::new(),
         }
     }
 
@@ -220,15 +225,18 @@ impl LstmModel {
 }
 
 /// The `drive` preset's linear stage (`LstmModel::linear`, `[O, 16]`; empty: none) on
-/// one row of inputs: per output, the correction [N*m] of that joint's inputs.
-pub fn linear_stage_nm(linear: &[f32], row: &[f32]) -> Vec<f32> {
+/// one row of inputs: per output, the correction [N*m] of that joint's inputs, its
+/// features clamped to that joint's `envelope` (missing: unbounded), as the firmware
+/// computes it.
+pub fn linear_stage_nm(linear: &[f32], envelope: &[JointEnvelope], row: &[f32]) -> Vec<f32> {
     let outputs = linear.len() / FRICTION_FEATURES;
     linear
         .chunks_exact(FRICTION_FEATURES)
         .enumerate()
         .map(|(k, w)| {
             let w: [f32; FRICTION_FEATURES] = std::array::from_fn(|c| w[c]);
-            features::linear_correction_nm(&w, &features::joint_drive_inputs(row, outputs, k))
+            let e = envelope.get(k).unwrap_or(&JointEnvelope::UNBOUNDED);
+            features::linear_correction_nm(&w, e, &features::joint_drive_inputs(row, outputs, k))
         })
         .collect()
 }
@@ -278,10 +286,11 @@ impl Streamer<'_> {
             .step(&mut h, &mut c, &mut e, &mut hs, input, &mut out);
         (self.h, self.c, self.embed, self.h_scratch) = (h, c, e, hs);
         r.map_err(|e| anyhow::anyhow!("firmware LSTM step: {e}"))?;
-        for (y, c) in out
-            .iter_mut()
-            .zip(linear_stage_nm(&self.model.linear, input))
-        {
+        for (y, c) in out.iter_mut().zip(linear_stage_nm(
+            &self.model.linear,
+            &self.model.envelope,
+            input,
+        )) {
             *y += c;
         }
         Ok(out)

@@ -714,6 +714,7 @@ fn walk<'a>(g: &mut Graph<'a>, x: &'a str, meta: &HashMap<&str, &str>) -> Result
         output_mean: sized(output_mean, o, 0.0, "the output scaling's mean")?,
         output_std: sized(output_std, o, 1.0, "the output scaling's std")?,
         linear: Vec::new(),
+        envelope: Vec::new(),
     })
 }
 

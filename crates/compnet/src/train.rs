@@ -386,7 +386,7 @@ pub fn fit_linear_stage(train: &[Sequence], outputs: usize) -> Result<Vec<f32>> 
 pub fn subtract_linear_stage(w: &[f32], seqs: &mut [Sequence]) {
     for s in seqs {
         for (row, t) in s.inputs.iter().zip(s.targets.iter_mut()) {
-            for (y, c) in t.iter_mut().zip(super::model::linear_stage_nm(w, row)) {
+            for (y, c) in t.iter_mut().zip(super::model::linear_stage_nm(w, &[], row)) {
                 *y -= c;
             }
         }

@@ -37,6 +37,13 @@ pub trait TorquePredictor<const J: usize> {
     fn predict_nm(&mut self, input: &PredictorInput<J>) -> [f32; J];
     /// Forget the internal state (the LSTM's h and c); a no-op for stateless models.
     fn reset(&mut self);
+    /// The training-envelope weight in [0, 1] its learned share had for joint
+    /// `joint_index` at the last prediction (`crate::envelope`); 1 for predictors that
+    /// learned nothing or carry no envelope.
+    fn envelope_weight(&self, joint_index: usize) -> f32 {
+        let _ = joint_index;
+        1.0
+    }
 }
 
 /// No predictor: use as the LSTM stage of a model-only compensator.
@@ -162,6 +169,9 @@ pub struct CompensatorOutput {
     pub source: FeedforwardSource,
     /// Faults of this tick (and of messages received since the last tick).
     pub faults: FaultFlags,
+    /// The training-envelope weight of the learned share this tick, in [0, 1]
+    /// (`crate::envelope`; 1 when the learned stage did not run).
+    pub envelope_weight: f32,
 }
 
 /// The per-joint feedforward compensator for `J` modelled joints with a model stage
@@ -408,6 +418,7 @@ impl<const J: usize, M: TorquePredictor<J>, L: TorquePredictor<J>> Compensator<J
 
         let mut target = 0.0f32;
         let mut source = FeedforwardSource::Zero;
+        let mut envelope_weight = 1.0f32;
         if inputs_ok {
             if !self.inputs_were_ok {
                 // The input stream was broken: restart the LSTM's state and blend
@@ -436,6 +447,12 @@ impl<const J: usize, M: TorquePredictor<J>, L: TorquePredictor<J>> Compensator<J
                 source = FeedforwardSource::Model;
                 if L::PRESENT {
                     target = self.lstm_stage(&mut input, model_nm, &mut faults, &mut source);
+                    if source == FeedforwardSource::ModelLstm {
+                        envelope_weight = self.lstm.envelope_weight(own_j);
+                        if envelope_weight < 1.0 {
+                            faults |= FaultFlags::ENVELOPE_OUTSIDE;
+                        }
+                    }
                 }
                 // The adaptation learns from the torque measured since the last tick
                 // and corrects this one (a no-op when off).
@@ -486,6 +503,7 @@ impl<const J: usize, M: TorquePredictor<J>, L: TorquePredictor<J>> Compensator<J
             current_a,
             source,
             faults,
+            envelope_weight,
         }
     }
 
@@ -668,6 +686,51 @@ mod tests {
             }
         }
         panic!("did not settle at {want} from {source:?}");
+    }
+
+    /// LSTM: model + 1 N*m, reporting a fixed envelope weight.
+    struct WeightedLstm(f32);
+    impl TorquePredictor<3> for WeightedLstm {
+        fn predict_nm(&mut self, input: &PredictorInput<3>) -> [f32; 3] {
+            input.model_nm.map(|m| m + 1.0)
+        }
+        fn reset(&mut self) {}
+        fn envelope_weight(&self, _joint_index: usize) -> f32 {
+            self.0
+        }
+    }
+
+    #[test]
+    fn the_envelope_weight_is_reported_and_flagged_below_one() {
+        for (weight, flagged) in [(1.0f32, false), (0.25, true), (0.0, true)] {
+            let mut c =
+                Compensator::new(config(), TestModel::new(None), WeightedLstm(weight)).unwrap();
+            let mut o = CompensatorOutput::default();
+            for k in 1..40u32 {
+                for j in [0u8, 2] {
+                    c.receive(&JointStateMessage {
+                        joint: j,
+                        session: 0,
+                        sequence: k as u16,
+                        timestamp_us: k * 1000,
+                        state: state(0.5),
+                    });
+                }
+                o = c.tick(&state(3.0), k * 1000);
+            }
+            assert_eq!(o.source, FeedforwardSource::ModelLstm);
+            assert_eq!(o.envelope_weight, weight);
+            assert_eq!(
+                o.faults.contains(FaultFlags::ENVELOPE_OUTSIDE),
+                flagged,
+                "{o:?}"
+            );
+        }
+        // A model-only compensator reports 1 and never the flag.
+        let mut c = Compensator::new(config(), TestModel::new(None), NoPredictor).unwrap();
+        let o = c.tick(&state(3.0), 0);
+        assert_eq!(o.envelope_weight, 1.0);
+        assert!(!o.faults.contains(FaultFlags::ENVELOPE_OUTSIDE));
     }
 
     #[test]

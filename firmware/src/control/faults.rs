@@ -50,10 +50,13 @@ impl FaultFlags {
     /// A trajectory reference or feedforward current was non-finite or out of
     /// range and was replaced (reference held, feedforward zero).
     pub const REFERENCE_INVALID: Self = Self(1 << 15);
+    /// The joint's state is outside its training envelope (`crate::envelope`): the
+    /// learned share of the feedforward is faded by a weight below 1.
+    pub const ENVELOPE_OUTSIDE: Self = Self(1 << 16);
 
     /// Every flag with its name, in bit order (new flags take the next bit and an
     /// entry here).
-    pub const NAMED: [(Self, &'static str); 16] = [
+    pub const NAMED: [(Self, &'static str); 17] = [
         (Self::STATE_REJECTED, "STATE_REJECTED"),
         (Self::STATE_STALE, "STATE_STALE"),
         (Self::STATE_OUT_OF_ORDER, "STATE_OUT_OF_ORDER"),
@@ -70,6 +73,7 @@ impl FaultFlags {
         (Self::IQ_CLAMPED, "IQ_CLAMPED"),
         (Self::VOLTAGE_LIMITED, "VOLTAGE_LIMITED"),
         (Self::REFERENCE_INVALID, "REFERENCE_INVALID"),
+        (Self::ENVELOPE_OUTSIDE, "ENVELOPE_OUTSIDE"),
     ];
 
     /// The raw bits.

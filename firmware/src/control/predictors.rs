@@ -13,6 +13,7 @@
 
 use super::compensator::{PredictorInput, TorquePredictor};
 use crate::dynamics::RigidBodyModel;
+use crate::envelope::{self, JointEnvelope};
 use crate::features::{self, DRIVE_INPUTS_PER_JOINT, FRICTION_FEATURES, MotionMemory};
 use crate::math;
 use crate::nn::format::{FeaturePreset, QuantFormat, QuantState};
@@ -144,6 +145,11 @@ impl<T: TorqueNetwork<I, O> + ?Sized, const I: usize, const O: usize> TorqueNetw
 ///   measured since the previous tick (`tau_meas` minus that tick's model torque) -> residual,
 ///   added to `tau_model` like `feedforward`, plus the preset's linear stage
 ///   ([`features::linear_correction_nm`] of the same inputs, [`Self::with_linear_stage`]).
+///
+/// Each joint's training envelope ([`Self::with_envelope`], `crate::envelope`) fades
+/// everything learned (the network's correction to the model torque and the linear
+/// stage) by its weight at this tick's state, and clamps the linear stage's features to
+/// their recorded ranges; without one ([`JointEnvelope::UNBOUNDED`]) nothing is faded.
 pub struct LstmPredictor<N: TorqueNetwork<I, J>, const J: usize, const I: usize> {
     network: N,
     state: N::State,
@@ -151,6 +157,8 @@ pub struct LstmPredictor<N: TorqueNetwork<I, J>, const J: usize, const I: usize>
     previous: Option<([f32; J], [f32; J])>,
     motion: [MotionMemory; J],
     linear: [[f32; FRICTION_FEATURES]; J],
+    envelope: [JointEnvelope; J],
+    weight: [f32; J],
 }
 
 impl<N: TorqueNetwork<I, J>, const J: usize, const I: usize> LstmPredictor<N, J, I> {
@@ -168,6 +176,8 @@ impl<N: TorqueNetwork<I, J>, const J: usize, const I: usize> LstmPredictor<N, J,
             previous: None,
             motion: [MotionMemory::new(); J],
             linear: [[0.0; FRICTION_FEATURES]; J],
+            envelope: [JointEnvelope::UNBOUNDED; J],
+            weight: [1.0; J],
         })
     }
 
@@ -177,6 +187,19 @@ impl<N: TorqueNetwork<I, J>, const J: usize, const I: usize> LstmPredictor<N, J,
     pub fn with_linear_stage(mut self, coefficients: [[f32; FRICTION_FEATURES]; J]) -> Self {
         self.linear = coefficients;
         self
+    }
+
+    /// Each joint's training envelope (the model file's `ENVELOPE`): the learned
+    /// stages fade by its weight outside it, the linear stage's features are clamped
+    /// to its ranges.
+    pub fn with_envelope(mut self, envelope: [JointEnvelope; J]) -> Self {
+        self.envelope = envelope;
+        self
+    }
+
+    /// Each joint's envelope weight at the last prediction (1 before the first).
+    pub fn envelope_weights(&self) -> [f32; J] {
+        self.weight
     }
 
     /// The network.
@@ -214,7 +237,8 @@ impl<N: TorqueNetwork<I, J>, const J: usize, const I: usize> TorquePredictor<J>
                         *slot = *v;
                     }
                 }
-                linear_nm[j] = features::linear_correction_nm(&self.linear[j], &f);
+                linear_nm[j] =
+                    features::linear_correction_nm(&self.linear[j], &self.envelope[j], &f);
             }
         } else if self.preset == FeaturePreset::Feedforward {
             let qd_ref = input.joints.map(|s| s.qd_ref_rad_s);
@@ -236,7 +260,17 @@ impl<N: TorqueNetwork<I, J>, const J: usize, const I: usize> TorquePredictor<J>
         let y = self.network.step(&mut self.state, &x);
         let mut out = [0.0f32; J];
         for (j, o) in out.iter_mut().enumerate() {
-            *o = self.preset.torque_nm(y[j], input.model_nm[j]) + linear_nm[j];
+            let s = &input.joints[j];
+            let w = self.envelope[j].weight(
+                s.q_ref_rad,
+                s.qd_ref_rad_s,
+                s.qdd_ref_rad_s2,
+                input.model_nm[j],
+                measured_residual[j],
+            );
+            self.weight[j] = w;
+            let full = self.preset.torque_nm(y[j], input.model_nm[j]) + linear_nm[j];
+            *o = envelope::fade_nm(w, input.model_nm[j], full);
         }
         out
     }
@@ -245,6 +279,10 @@ impl<N: TorqueNetwork<I, J>, const J: usize, const I: usize> TorquePredictor<J>
         self.state = self.network.zero_state();
         self.previous = None;
         self.motion = [MotionMemory::new(); J];
+    }
+
+    fn envelope_weight(&self, joint_index: usize) -> f32 {
+        self.weight.get(joint_index).copied().unwrap_or(1.0)
     }
 }
 
@@ -344,6 +382,40 @@ mod tests {
         assert_eq!(y, [4.0 + 0.0 + (0.25 + 3.0 * tanh)]);
         // A network of another width does not fit the drive layout.
         assert!(LstmPredictor::<_, 1, 3>::new(Pick(0), FeaturePreset::Drive).is_none());
+    }
+
+    #[test]
+    fn the_envelope_fades_the_learned_share_to_the_model_and_clamps_the_linear_stage() {
+        // Network output 2 (a residual), linear stage 0.5 + 1 * qd: at qd = 0.5 inside
+        // the envelope the prediction is model + 2 + 0.5 + 0.5.
+        let mut w = [[0.0; FRICTION_FEATURES]; 1];
+        (w[0][0], w[0][6]) = (0.5, 1.0);
+        let mut e = JointEnvelope::UNBOUNDED;
+        e.drive[2] = envelope::Range::new(-0.5, 0.5);
+        e.friction[6] = envelope::Range::new(-0.5, 0.5);
+        struct Two;
+        impl TorqueNetwork<DRIVE_INPUTS_PER_JOINT, 1> for Two {
+            type State = ();
+            fn zero_state(&self) {}
+            fn step(&self, _: &mut (), _: &[f32; DRIVE_INPUTS_PER_JOINT]) -> [f32; 1] {
+                [2.0]
+            }
+        }
+        let mut p = LstmPredictor::<_, 1, DRIVE_INPUTS_PER_JOINT>::new(Two, FeaturePreset::Drive)
+            .unwrap()
+            .with_linear_stage(w)
+            .with_envelope([e]);
+        assert_eq!(p.predict_nm(&input1(0.0, 0.5, 0.0, 4.0)), [4.0 + 2.0 + 1.0]);
+        assert_eq!(p.envelope_weights(), [1.0]);
+        // Half a fade width out (fade width 0.25 * 1 + 0.05 = 0.3): weight 0.5, and the
+        // qd feature clamped at 0.5.
+        let y = p.predict_nm(&input1(0.0, 0.65, 0.0, 4.0));
+        let wt = p.envelope_weight(0);
+        assert!((wt - 0.5).abs() < 1e-5, "{wt}");
+        assert_eq!(y, [envelope::fade_nm(wt, 4.0, 4.0 + 2.0 + 1.0)]);
+        // Beyond the fade: the model alone.
+        assert_eq!(p.predict_nm(&input1(0.0, 3.0, 0.0, 4.0)), [4.0]);
+        assert_eq!(p.envelope_weight(0), 0.0);
     }
 
     #[test]
