@@ -189,7 +189,9 @@ mod app {
         ) else {
             cortex_m::asm::udf();
         };
-        let lstm = lstm.with_linear_stage(compiled::LINEAR_STAGE);
+        let lstm = lstm
+            .with_linear_stage(compiled::LINEAR_STAGE)
+            .with_envelope(compiled::ENVELOPE);
         let mut compensator = match plan.compensator {
             Some(config) => match Compensator::<JOINTS, _, _>::new(config, model(), lstm) {
                 Ok(c) => Some(c.with_adaptation(plan.adaptation)),

@@ -262,6 +262,19 @@ impl JointEnvelope {
     }
 }
 
+/// Whether every envelope of a model is valid ([`JointEnvelope::is_valid`]; for
+/// `check_model!`).
+pub const fn all_valid(envelopes: &[JointEnvelope]) -> bool {
+    let mut k = 0;
+    while k < envelopes.len() {
+        if !envelopes[k].is_valid() {
+            return false;
+        }
+        k += 1;
+    }
+    true
+}
+
 /// Cell of `x` among `cells` equal cells of `r`; `None` outside or non-finite. A range
 /// of zero width has its single value in cell 0.
 #[inline]

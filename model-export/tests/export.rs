@@ -35,6 +35,8 @@ fn args(out: PathBuf, precision: Precision) -> ExportArgs {
         accuracy_json: None,
         gate_data: Vec::new(),
         allow_worse: false,
+        envelope_data: Vec::new(),
+        no_envelope: false,
     }
 }
 
@@ -160,6 +162,14 @@ fn regenerating_the_linear_input_golden_models_gives_the_committed_files() {
         a.model = Some(workspace().join("crates/compnet/tests/fixtures/torch_linear.safetensors"));
         a.joints = vec![1, 2];
         a.allow_worse = true;
+        // An imported network carries no training envelope: refused unless the user
+        // names its training data or exports it without one, explicitly.
+        let err = model_export::cmd::export::model(&a).unwrap_err();
+        assert!(
+            format!("{err:#}").contains("--envelope-data") && !out.exists(),
+            "{err:#}"
+        );
+        a.no_envelope = true;
         let m = model_export::cmd::export::model(&a).expect("model");
         model_export::cmd::export::export(&m, &a).expect("export");
         let fresh = std::fs::read_to_string(&out).expect("read");

@@ -26,6 +26,8 @@ fn export_args(robot: Option<PathBuf>, out: PathBuf) -> ExportArgs {
         accuracy_json: None,
         gate_data: Vec::new(),
         allow_worse: false,
+        envelope_data: Vec::new(),
+        no_envelope: false,
     }
 }
 

@@ -274,8 +274,10 @@ impl Workload for DriveStageInt16 {
     fn new() -> Self {
         use crate::fixtures::bench_drive_int16 as m;
         DriveStageInt16 {
-            predictor: LstmPredictor::new(&m::NETWORK, m::FEATURE_PRESET)
-                .map(|p| p.with_linear_stage(m::LINEAR_STAGE)),
+            predictor: LstmPredictor::new(&m::NETWORK, m::FEATURE_PRESET).map(|p| {
+                p.with_linear_stage(m::LINEAR_STAGE)
+                    .with_envelope(m::ENVELOPE)
+            }),
             inputs: core::array::from_fn(|t| {
                 let [q, qd, qdd, tau, model] = crate::golden::network::inputs::<5>(t);
                 PredictorInput {

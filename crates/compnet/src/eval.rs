@@ -107,6 +107,10 @@ pub struct ReportRow {
     /// not asked for, or the output is not a joint's measured torque).
     #[serde(default)]
     pub adapted: Option<AdaptedRms>,
+    /// Share of the rows outside the network's training envelope, where the drive fades
+    /// its learned share (`firmware::envelope`; 0 for a network without one).
+    #[serde(default)]
+    pub outside_envelope_share: f64,
 }
 
 /// RMS [N·m] of each prediction followed by the online friction adaptation

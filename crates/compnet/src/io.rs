@@ -180,6 +180,13 @@ pub fn parse_model_with(bytes: &[u8], input_activation: Option<&str>) -> Result<
              or nothing (`tanh`, `linear`)"
         )
     })?;
+    if let Some(text) = meta
+        .metadata()
+        .as_ref()
+        .and_then(|m| m.get(crate::envelope::METADATA_KEY))
+    {
+        m.envelope = crate::envelope::from_metadata(text, o)?;
+    }
     Ok(m)
 }
 
@@ -244,6 +251,10 @@ pub fn model_bytes(m: &LstmModel) -> Result<Vec<u8>> {
         .iter()
         .map(|(n, b)| Ok((*n, TensorView::new(Dtype::F32, shapes[n].clone(), b)?)))
         .collect::<Result<_>>()?;
+    let envelope = (!m.envelope.is_empty())
+        .then(|| crate::envelope::to_metadata(&m.envelope))
+        .transpose()?
+        .map(|text| (crate::envelope::METADATA_KEY.to_string(), text));
     let meta: HashMap<String, String> = [
         ("input_names".to_string(), m.input_names.join(",")),
         ("output_names".to_string(), m.output_names.join(",")),
@@ -258,6 +269,7 @@ pub fn model_bytes(m: &LstmModel) -> Result<Vec<u8>> {
         ),
     ]
     .into_iter()
+    .chain(envelope)
     .collect();
     canonical_header(safetensors::serialize(views, Some(meta))?)
 }

@@ -5,6 +5,7 @@
 pub mod adaptation;
 pub mod baseline;
 pub mod data;
+pub mod envelope;
 pub mod eval;
 pub mod fused;
 pub mod fused_net;

@@ -163,6 +163,16 @@ impl LstmModel {
                 bail!("tensor `linear.weight`: element {k} is not finite");
             }
         }
+        if !self.envelope.is_empty() && self.envelope.len() != self.dims.output {
+            bail!(
+                "model has {} joint envelopes for {} outputs",
+                self.envelope.len(),
+                self.dims.output
+            );
+        }
+        if let Some(k) = self.envelope.iter().position(|e| !e.is_valid()) {
+            bail!("joint envelope {k} has an unordered or NaN range");
+        }
         if self.input_names.len() != self.dims.input || self.output_names.len() != self.dims.output
         {
             bail!(

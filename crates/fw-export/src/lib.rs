@@ -9,6 +9,8 @@
 //! predictions written into the file (`SELF_CHECK_*`) are what the target computes.
 #![deny(unsafe_code)]
 #![warn(missing_docs)]
+pub mod envelope;
+
 use anyhow::{Context, Result, bail};
 use compnet::model::LstmModel;
 use firmware::dynamics::RigidBodyModel;
@@ -1734,6 +1736,7 @@ pub fn render(
         meta.control_rate_hz
     );
     write_profiles(s, &meta.profiles);
+    envelope::write_envelope(s, m);
     match net {
         Exported::F32(n) => {
             // The whole gate matrix goes with the network, or its first blocks to SRAM

@@ -429,6 +429,9 @@ pub struct JointRun {
     pub faults: FaultFlags,
     /// Compensator ticks by feedforward source: zero, model, model + LSTM.
     pub source_ticks: [u64; 3],
+    /// Compensator ticks outside the training envelope (`ENVELOPE_OUTSIDE`: the learned
+    /// share faded).
+    pub outside_envelope_ticks: u64,
     /// The joint the board was configured for, or why its block was refused.
     pub startup: Result<JointSlot, JointConfigFault>,
     /// PWM periods simulated.
@@ -477,6 +480,7 @@ where
     let (mut se, mut max_e, mut siq, mut sfb) = ([0.0f64; J], [0.0f64; J], [0.0; J], [0.0; J]);
     let mut faults = [FaultFlags::NONE; J];
     let mut sources = [[0u64; 3]; J];
+    let mut outside = [0u64; J];
     let mut t = 0.0f64;
     for k in 0..n {
         let t_tick = k as f64 / pwm_hz;
@@ -512,6 +516,9 @@ where
                 &mut bus,
             );
             faults[j] |= step.faults;
+            if step.source.is_some() && step.faults.contains(FaultFlags::ENVELOPE_OUTSIDE) {
+                outside[j] += 1;
+            }
             if let Some(s) = step.source {
                 sources[j][match s {
                     FeedforwardSource::Zero => 0,
@@ -554,6 +561,7 @@ where
             rms_feedback_current_a: (sfb[j] / nf).sqrt(),
             faults: faults[j],
             source_ticks: sources[j],
+            outside_envelope_ticks: outside[j],
             startup: joints[j].startup,
             pwm_ticks: n,
         })

@@ -27,6 +27,7 @@ use firmware::control::{
     JointConfigBlock, JointProfile, LstmPredictor, NoPredictor, TorqueNetwork, TorquePredictor,
 };
 use firmware::dynamics::RigidBodyModel;
+use firmware::envelope::JointEnvelope;
 use firmware::features::{DRIVE_INPUTS_PER_JOINT, FRICTION_FEATURES};
 use firmware::nn::format::{FeaturePreset, I16Weights};
 use fw_export::{F32Net, QuantNet};
@@ -300,6 +301,10 @@ pub struct WristJointReport {
     /// Compensator ticks by feedforward source: zero, model, model + LSTM (a board
     /// whose configuration block was refused counts every tick as zero).
     pub source_ticks: [u64; 3],
+    /// Share of the compensator ticks outside the training envelope (the learned share
+    /// faded, `ENVELOPE_OUTSIDE`).
+    #[serde(default)]
+    pub outside_envelope_share: f64,
     /// Why the board's configuration block was refused (it then runs without
     /// feedforward and sends no state frames); absent when it was accepted.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -488,6 +493,8 @@ where
         rms_iq_a: runs[k].rms_iq_a,
         fault_bits: runs[k].faults.bits(),
         source_ticks: runs[k].source_ticks,
+        outside_envelope_share: runs[k].outside_envelope_ticks as f64
+            / runs[k].source_ticks.iter().sum::<u64>().max(1) as f64,
         startup_fault: runs[k].startup.err().map(|f| format!("{f:?}")),
     }))
 }
@@ -550,6 +557,14 @@ pub fn run_wrist(
             let net = l.network(mode == WristFeedforward::ModelLstmInt16)?;
             let preset = l.preset;
             let layout = "the network does not take its preset's feature layout";
+            // The network's training envelope (unbounded where it carries none).
+            let envelope: [JointEnvelope; J] = std::array::from_fn(|k| {
+                l.model
+                    .envelope
+                    .get(k)
+                    .copied()
+                    .unwrap_or(JointEnvelope::UNBOUNDED)
+            });
             if preset == FeaturePreset::Drive {
                 let mut linear = [[0.0; FRICTION_FEATURES]; J];
                 for (row, w) in linear
@@ -562,12 +577,15 @@ pub fn run_wrist(
                     let p =
                         LstmPredictor::<_, J, { DRIVE_INPUTS_PER_JOINT * J }>::new(&net, preset)
                             .context(layout)?
-                            .with_linear_stage(linear);
+                            .with_linear_stage(linear)
+                            .with_envelope(envelope);
                     Ok((m, p))
                 })
             } else {
                 run_wrist_with(setup, |_| {
-                    let p = LstmPredictor::<_, J, { 3 * J }>::new(&net, preset).context(layout)?;
+                    let p = LstmPredictor::<_, J, { 3 * J }>::new(&net, preset)
+                        .context(layout)?
+                        .with_envelope(envelope);
                     Ok((m, p))
                 })
             }
@@ -605,9 +623,9 @@ pub fn markdown_table(reports: &[ModeReport]) -> String {
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "| feedforward | joint | RMS error [mrad] | max error [mrad] | RMS iq [A] | vs model: error | vs model: iq | ticks zero/model/LSTM | faults |"
+        "| feedforward | joint | RMS error [mrad] | max error [mrad] | RMS iq [A] | vs model: error | vs model: iq | ticks zero/model/LSTM | outside envelope | faults |"
     );
-    let _ = writeln!(s, "|---|---:|---:|---:|---:|---:|---:|---|---|");
+    let _ = writeln!(s, "|---|---:|---:|---:|---:|---:|---:|---|---:|---|");
     let model = reports.iter().find(|r| r.feedforward == "model");
     for r in reports {
         for (k, j) in r.joints.iter().enumerate() {
@@ -626,7 +644,7 @@ pub fn markdown_table(reports: &[ModeReport]) -> String {
             };
             let _ = writeln!(
                 s,
-                "| {} | {} | {:.4} | {:.4} | {:.4} | {de} | {di} | {}/{}/{} | {:#06x} |",
+                "| {} | {} | {:.4} | {:.4} | {:.4} | {de} | {di} | {}/{}/{} | {:.1} % | {:#06x} |",
                 r.feedforward,
                 j.joint,
                 j.rms_error_rad * 1e3,
@@ -635,6 +653,7 @@ pub fn markdown_table(reports: &[ModeReport]) -> String {
                 j.source_ticks[0],
                 j.source_ticks[1],
                 j.source_ticks[2],
+                100.0 * j.outside_envelope_share,
                 j.fault_bits
             );
         }
@@ -683,7 +702,8 @@ mod tests {
                 compiled::FEATURE_PRESET,
             )
             .context("the compiled-in network takes its preset's layout")?
-            .with_linear_stage(compiled::LINEAR_STAGE);
+            .with_linear_stage(compiled::LINEAR_STAGE)
+            .with_envelope(compiled::ENVELOPE);
             Ok((model, lstm))
         })
         .unwrap()

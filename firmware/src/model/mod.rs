@@ -34,13 +34,14 @@
 //! const _: () = assert!(firmware::nn::format::FeaturePreset::Paper.fits(3, 8, 3));
 //! ```
 
-/// Layout and numerics version of generated model files this firmware reads (8: an
+/// Layout and numerics version of generated model files this firmware reads (9: each
+/// output joint's training envelope, `ENVELOPE`, faded and clamped by the predictor; 8: an
 /// integer network's activation tables, SRAM or flash, `Format::ACT_TABLES`; 7: each
 /// profile's friction adaptation; 6: each compensated joint's drive profile,
 /// `JOINT_PROFILES`; 5: the input layer's
 /// activation, `INPUT_ACTIVATION`, tanh or linear; the `drive` preset's presliding
 /// inputs and load-dependent friction features).
-pub const SCHEMA_VERSION: u32 = 8;
+pub const SCHEMA_VERSION: u32 = 9;
 
 /// Index in a compiled-in dynamics model of each compensated joint: the robot joint
 /// indices when the dynamics cover the whole arm, else (the other joints locked away at
@@ -63,7 +64,8 @@ pub const fn dynamics_indices<const J: usize>(
 /// Checks a generated model module at compile time: schema version, feature layout,
 /// that its network's `step` takes `[f32; INPUTS]` and returns `[f32; OUTPUTS]`, a
 /// linear stage row per output, that the network's type runs the input activation
-/// the file names, and a usable drive profile per compensated joint.
+/// the file names, a usable drive profile per compensated joint, and a valid training
+/// envelope per output.
 /// `check_model!(module)`, for every module that includes a model file.
 #[macro_export]
 macro_rules! check_model {
@@ -85,6 +87,11 @@ macro_rules! check_model {
             $m::Network::step;
         const _: &[[f32; $crate::features::FRICTION_FEATURES]; $m::OUTPUTS] = &$m::LINEAR_STAGE;
         const _: &[$crate::control::JointProfile; $m::JOINT_INDICES.len()] = &$m::JOINT_PROFILES;
+        const _: &[$crate::envelope::JointEnvelope; $m::OUTPUTS] = &$m::ENVELOPE;
+        const _: () = assert!(
+            $crate::envelope::all_valid(&$m::ENVELOPE),
+            "a joint envelope of the model has an unordered or NaN range"
+        );
         const _: () = assert!(
             $crate::control::profile::all_valid(&$m::JOINT_PROFILES),
             "a joint profile of the model has an unusable field"

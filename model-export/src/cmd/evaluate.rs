@@ -112,7 +112,16 @@ pub fn run(a: EvaluateArgs) -> Result<()> {
         .zip(tables.iter().zip(&scored_tables))
         .enumerate()
     {
-        let pred = model.stream(&s.inputs)?;
+        // The learned share faded outside the training envelope, as the drive fades it.
+        let mut pred = model.stream(&s.inputs)?;
+        let outside = if model.envelope.is_empty() {
+            vec![0.0; model.dims.output]
+        } else {
+            let weights = compnet::envelope::step_weights(&model.envelope, &spec, table, &s)
+                .with_context(|| format!("{}: the training envelope's inputs", p.display()))?;
+            compnet::envelope::fade_predictions(&mut pred, &s, &weights);
+            compnet::envelope::outside_share(&weights, model.dims.output)
+        };
         let rows = eval::evaluate_streamed(&model, &s, &pred)?;
         let base_rms = match &baseline {
             Some(b) => eval::baseline_rms(&spec, scored, s.len(), b)?,
@@ -133,12 +142,16 @@ pub fn run(a: EvaluateArgs) -> Result<()> {
             .into_iter()
             .zip(base_rms)
             .zip(adapted)
-            .map(|((eval, baseline_rms_nm), adapted)| eval::ReportRow {
-                eval,
-                samples: s.len(),
-                baseline_rms_nm,
-                adapted,
-            })
+            .zip(&outside)
+            .map(
+                |(((eval, baseline_rms_nm), adapted), &outside_envelope_share)| eval::ReportRow {
+                    eval,
+                    samples: s.len(),
+                    baseline_rms_nm,
+                    adapted,
+                    outside_envelope_share,
+                },
+            )
             .collect();
         artifacts::ensure_finite(
             &format!("{}: evaluation", p.display()),
@@ -160,6 +173,16 @@ pub fn run(a: EvaluateArgs) -> Result<()> {
                 eval::markdown(&plain)
             }
         );
+        if !model.envelope.is_empty() {
+            let shares: Vec<String> = rows
+                .iter()
+                .map(|r| format!("{} {:.1} %", r.eval.name, 100.0 * r.outside_envelope_share))
+                .collect();
+            println!(
+                "outside the training envelope (learned share faded): {}",
+                shares.join(", ")
+            );
+        }
         let paper = spec
             .preset
             .starts_with("paper")

@@ -84,6 +84,47 @@ pub struct ExportArgs {
     /// without `--gate-data`); the generated file then carries a warning.
     #[arg(long)]
     pub allow_worse: bool,
+    /// Training datasets (CSV written by `torque --dataset`, whole runs) from which to
+    /// record the training envelope of `--joints` (`firmware::envelope`), for a network
+    /// that carries none (imported from PyTorch) or to replace the one it carries.
+    #[arg(long = "envelope-data", value_name = "CSV", value_delimiter = ',')]
+    pub envelope_data: Vec<PathBuf>,
+    /// Export a network from `--model` that carries no envelope without one: its learned
+    /// stages are then never faded (test fixtures; a seeded network never has one).
+    #[arg(long, conflicts_with = "envelope_data")]
+    pub no_envelope: bool,
+}
+
+/// The training envelope of the network to export: recorded from `--envelope-data`
+/// when given, else the one `m` carries; a network from `--model` without one is
+/// refused unless `--no-envelope`.
+fn envelope(m: &mut LstmModel, a: &ExportArgs) -> Result<()> {
+    if !a.envelope_data.is_empty() {
+        let tables: Vec<compnet::data::Table> = a
+            .envelope_data
+            .iter()
+            .map(|p| compnet::data::Table::read(p))
+            .collect::<Result<_>>()?;
+        if a.joints.len() != m.dims.output {
+            bail!(
+                "--envelope-data: --joints names {} joints, the network has {} outputs",
+                a.joints.len(),
+                m.dims.output
+            );
+        }
+        m.envelope = compnet::envelope::record(&tables, &a.joints)
+            .context("--envelope-data: recording the training envelope")?;
+        return Ok(());
+    }
+    if a.model.is_some() && m.envelope.is_empty() && !a.no_envelope {
+        bail!(
+            "the network carries no training envelope (imported, or trained before envelopes \
+             were recorded): name its training datasets with --envelope-data FILES (whole \
+             runs), or export it without one with --no-envelope (its learned stages are then \
+             never faded outside the conditions they were trained on)"
+        );
+    }
+    Ok(())
 }
 
 /// Per validation run (1-based, `--gate-data` order) and compensated joint: the model
@@ -152,6 +193,13 @@ fn joint_profiles(
 
 /// Builds the model to export.
 pub fn model(a: &ExportArgs) -> Result<LstmModel> {
+    let mut m = seeded_or_read(a)?;
+    envelope(&mut m, a)?;
+    Ok(m)
+}
+
+/// The network of `--model`, or the seeded one.
+fn seeded_or_read(a: &ExportArgs) -> Result<LstmModel> {
     match &a.model {
         Some(p) => compnet::io::read_model(p),
         None => {

@@ -304,6 +304,32 @@ pub fn run(a: TrainArgs) -> Result<()> {
         println!("output gains on the held-out runs (do-no-harm shrinkage): {gains:?}");
     }
     model.linear = linear;
+    // The training envelope of each compensated joint, over the whole training runs
+    // (not only their training blocks): what the drive fades the learned stages outside.
+    let joints: Option<Vec<usize>> = (0..spec.targets.len())
+        .map(|k| eval::target_joint(&spec, k))
+        .collect();
+    if let Some(joints) = joints {
+        let tables: Vec<Table> = a
+            .data
+            .iter()
+            .map(|p| Table::read(p))
+            .collect::<Result<_>>()?;
+        model.envelope = compnet::envelope::record(&tables, &joints)
+            .context("recording the training envelope")?;
+        for (j, e) in joints.iter().zip(&model.envelope) {
+            let qd = e.drive[2];
+            println!(
+                "envelope joint {j}: q [{:.3}, {:.3}] rad, qd [{:.3}, {:.3}] rad/s, {} of {} (q, qd) cells covered",
+                e.q_rad.lo,
+                e.q_rad.hi,
+                qd.lo,
+                qd.hi,
+                e.covered_cells(),
+                firmware::envelope::COVERAGE_CELLS_Q * firmware::envelope::COVERAGE_CELLS_QD
+            );
+        }
+    }
     let model_bytes = io::model_bytes(&model)?;
     let loss_svg = plot::loss_curve_svg(&hist)?;
     println!(
