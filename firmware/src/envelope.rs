@@ -292,14 +292,16 @@ fn grid_index(r: Range, x: f32, cells: usize) -> Option<usize> {
 }
 
 /// The faded prediction [N*m]: `full_nm` (model plus everything learned) when
-/// `weight >= 1`, else `model_nm + weight * (full_nm - model_nm)`; at weight 0 the
-/// model's torque.
+/// `weight >= 1`, exactly `model_nm` when `weight <= 0` (or NaN), else
+/// `model_nm + weight * (full_nm - model_nm)`.
 #[inline]
 pub fn fade_nm(weight: f32, model_nm: f32, full_nm: f32) -> f32 {
     if weight >= 1.0 {
         full_nm
-    } else {
+    } else if weight > 0.0 {
         model_nm + weight * (full_nm - model_nm)
+    } else {
+        model_nm
     }
 }
 
@@ -358,6 +360,8 @@ mod tests {
         assert_eq!(fade_nm(1.0, 2.0, 5.0), 5.0);
         assert_eq!(fade_nm(0.0, 2.0, 5.0), 2.0);
         assert_eq!(fade_nm(0.5, 2.0, 5.0), 3.5);
+        assert_eq!(fade_nm(f32::NAN, 2.0, 5.0), 2.0);
+        assert_eq!(fade_nm(0.0, f32::INFINITY, 5.0), f32::INFINITY);
         let mut bad = e;
         bad.friction[0] = Range::new(1.0, 0.0);
         assert!(!bad.is_valid());

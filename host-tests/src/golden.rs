@@ -144,6 +144,28 @@ pub fn host_features() -> Vec<Record> {
     out
 }
 
+/// The host's computation of the `envelope` suite (`firmware::envelope`: weight, faded
+/// prediction, clamped linear stage, coverage; then the drive predictor's faded stream):
+/// functions `e<k>` per case, `ey` and `ew` per step.
+pub fn host_envelope() -> Vec<Record> {
+    let mut out = Vec::new();
+    for case in 0..golden::ENVELOPE_CASES {
+        for (k, v) in golden::envelope_output(case).iter().enumerate() {
+            out.push(Record::new(
+                &format!("e{k}"),
+                case,
+                case as u32,
+                v.to_bits(),
+            ));
+        }
+    }
+    golden::envelope_stream(|t, y, w| {
+        out.push(Record::new("ey", t, t as u32, y.to_bits()));
+        out.push(Record::new("ew", t, t as u32, w.to_bits()));
+    });
+    out
+}
+
 /// The host's computation of the `lstm` suite: the golden network streamed step by step.
 pub fn host_lstm() -> Vec<Record> {
     let mut out = Vec::with_capacity(golden::LSTM_STEPS * golden::LSTM_O);
@@ -211,6 +233,7 @@ pub fn check_report(report: &str) -> Result<Vec<SuiteCheck>> {
         ("cells", host_cells()),
         ("dynamics", host_dynamics()),
         ("features", host_features()),
+        ("envelope", host_envelope()),
         ("lstm", host_lstm()),
     ];
     for g in GoldenModel::ALL {

@@ -2,6 +2,8 @@
 //!
 //! Both sides generate the same inputs from integer arithmetic, run the same
 //! firmware functions on them, and `host-tests` compares the outputs bit for bit.
+//! The `envelope` suite ([`envelope_output`], [`envelope_stream`]) covers the training
+//! envelope's weight, the faded prediction and the clamped linear stage.
 //! [`network`]: the input stream of the compiled-in networks (the exporter's
 //! self-check and the QEMU network suites).
 
@@ -9,6 +11,7 @@ pub mod network;
 
 use firmware::adaptation;
 use firmware::dynamics::{JointModel, RigidBodyModel};
+use firmware::envelope::{self, JointEnvelope, Range};
 use firmware::features;
 use firmware::math;
 use firmware::nn::format::InputActivation;
@@ -438,6 +441,124 @@ pub fn lstm_stream(mut emit: impl FnMut(usize, &[f32; LSTM_O])) {
     }
 }
 
+/// Cases of the `envelope` suite.
+pub const ENVELOPE_CASES: usize = 500;
+
+/// Values per case of the `envelope` suite: the weight, the faded prediction, the
+/// clamped linear correction and whether the state is in a covered cell (0 or 1).
+pub const ENVELOPE_VALUES: usize = 4;
+
+/// Steps of the `envelope` suite's predictor stream.
+pub const ENVELOPE_STEPS: usize = 2_000;
+
+/// A training envelope from `seed`: each range between two values of `[-s, s)` (s = 3
+/// for the angle and the drive inputs, 2 for the friction features), 64 hashed coverage
+/// bits.
+pub fn envelope_case(seed: u32) -> JointEnvelope {
+    let r = |k: u32| 2.0 * unit(hash(seed.wrapping_add(k))) - 1.0;
+    let range = |k: u32, s: f32| {
+        let (a, b) = (s * r(k), s * r(k + 1));
+        Range::new(a.min(b), a.max(b))
+    };
+    JointEnvelope {
+        q_rad: range(0, 3.0),
+        drive: core::array::from_fn(|i| range(2 + 2 * i as u32, 3.0)),
+        friction: core::array::from_fn(|i| range(40 + 2 * i as u32, 2.0)),
+        coverage: u64::from(hash(seed ^ 0xC0)) | (u64::from(hash(seed ^ 0xC1)) << 32),
+    }
+}
+
+/// The `envelope` suite's case (`firmware::envelope`): an envelope from
+/// [`envelope_case`] and a state with q, qd, qdd, model torque and measured residual in
+/// [-4, 4) (every fourth case inside the envelope's ranges; every sixteenth case one of
+/// them NaN, every sixteenth another infinite): the
+/// weight, the faded prediction of a full prediction up to 5 N*m off the model, the linear
+/// correction with the features clamped to the envelope (of the state with its
+/// non-finite values replaced by 0), and the coverage check.
+pub fn envelope_output(case: usize) -> [f32; ENVELOPE_VALUES] {
+    let seed = 0x0E57_0000u32 ^ (case as u32).wrapping_mul(7);
+    let r = |k: u32| 2.0 * unit(hash(seed.wrapping_add(0x100 + k))) - 1.0;
+    let e = envelope_case(seed);
+    let ranges = e.faded_ranges();
+    let mut s: [f32; 5] = core::array::from_fn(|k| {
+        if case % 4 == 0 {
+            // Inside: a point of the range.
+            let t = 0.5 + 0.5 * r(k as u32);
+            ranges[k].lo + t * (ranges[k].hi - ranges[k].lo)
+        } else {
+            4.0 * r(k as u32)
+        }
+    });
+    if case % 16 == 3 {
+        s[case % 5] = f32::NAN;
+    } else if case % 16 == 11 {
+        s[case % 5] = f32::INFINITY;
+    }
+    let [q, qd, qdd, model, residual] = s;
+    let w = e.weight(q, qd, qdd, model, residual);
+    let faded = envelope::fade_nm(w, model, model + 5.0 * r(5));
+    // The linear stage on the finite state only (an infinite input makes NaNs whose sign
+    // bit differs between targets; the compensator rejects any NaN).
+    let [q, qd, qdd, model, residual] = s.map(|v| if v.is_finite() { v } else { 0.0 });
+    let x = features::drive_inputs(
+        q,
+        qd,
+        qdd,
+        model,
+        (
+            (case % 3) as f32 - 1.0,
+            core::array::from_fn(|k| r(6 + k as u32)),
+        ),
+        residual,
+    );
+    let coefficients: [f32; features::FRICTION_FEATURES] =
+        core::array::from_fn(|k| 0.5 * r(20 + k as u32));
+    let linear = features::linear_correction_nm(&coefficients, &e, &x);
+    let covered = if e.covered(q, qd) { 1.0 } else { 0.0 };
+    [w, faded, linear, covered]
+}
+
+/// The `envelope` suite's stream: the `drive` preset's predictor
+/// (`firmware::control::LstmPredictor`) on the int16 drive fixture network with a linear
+/// stage and an envelope whose faded inputs span [-2.5, 2.5] (the golden inputs reach
+/// about 4, so the stream goes in and out of it), over [`ENVELOPE_STEPS`] steps of the
+/// golden network inputs; emits per step the faded prediction and the weight.
+pub fn envelope_stream(mut emit: impl FnMut(usize, f32, f32)) {
+    use crate::fixtures::bench_drive_int16 as m;
+    use firmware::control::{JointState, LstmPredictor, PredictorInput, TorquePredictor};
+    let mut e = envelope_case(0x0E57_F00D);
+    let wide = Range::new(-2.5, 2.5);
+    e.q_rad = wide;
+    for k in envelope::FADED_DRIVE_COLUMNS {
+        e.drive[k] = wide;
+    }
+    let coefficients: [f32; features::FRICTION_FEATURES] =
+        core::array::from_fn(|k| 0.5 * (2.0 * unit(hash(0x0E57_0A00 + k as u32)) - 1.0));
+    let Some(p) = LstmPredictor::<_, 1, { features::DRIVE_INPUTS_PER_JOINT }>::new(
+        &m::NETWORK,
+        m::FEATURE_PRESET,
+    ) else {
+        return;
+    };
+    let mut p = p.with_linear_stage([coefficients]).with_envelope([e]);
+    for t in 0..ENVELOPE_STEPS {
+        let [q, qd, qdd, tau, model] = network::inputs::<5>(t);
+        let input = PredictorInput {
+            joints: [JointState {
+                q_ref_rad: q,
+                qd_ref_rad_s: qd,
+                qdd_ref_rad_s2: qdd,
+                tau_meas_nm: tau,
+                ..Default::default()
+            }],
+            own_joint: 0,
+            model_nm: [model],
+        };
+        let y = p.predict_nm(&input)[0];
+        emit(t, y, p.envelope_weights()[0]);
+    }
+}
+
 /// A 32-bit integer hash (lowbias32), the generator behind the golden inputs.
 pub const fn hash(mut x: u32) -> u32 {
     x ^= x >> 16;
@@ -456,6 +577,27 @@ pub fn unit(h: u32) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_envelope_suite_goes_in_and_out_of_the_envelope() {
+        let (mut inside, mut faded, mut zero) = (0, 0, 0);
+        envelope_stream(|_, y, w| {
+            assert!(y.is_finite() && (0.0..=1.0).contains(&w));
+            match w {
+                1.0 => inside += 1,
+                0.0 => zero += 1,
+                _ => faded += 1,
+            }
+        });
+        assert!(
+            inside > 0 && faded > 0 && zero > 0,
+            "{inside} {faded} {zero}"
+        );
+        let cases: std::vec::Vec<_> = (0..ENVELOPE_CASES).map(envelope_output).collect();
+        assert!(cases.iter().any(|c| c[0] == 1.0) && cases.iter().any(|c| c[0] == 0.0));
+        assert!(cases.iter().any(|c| c[0] > 0.0 && c[0] < 1.0));
+        assert!(cases.iter().any(|c| c[3] == 1.0) && cases.iter().any(|c| c[3] == 0.0));
+    }
 
     #[test]
     fn dynamics_cases_are_finite_and_distinct() {

@@ -152,6 +152,27 @@ fn main() -> ! {
     });
     out.line(format_args!("@end lstm"));
 
+    out.line(format_args!(
+        "@suite envelope {}",
+        golden::ENVELOPE_CASES * golden::ENVELOPE_VALUES + 2 * golden::ENVELOPE_STEPS
+    ));
+    for case in 0..golden::ENVELOPE_CASES {
+        for (k, v) in golden::envelope_output(case).iter().enumerate() {
+            out.line(format_args!(
+                "e{} {} {:08x} {:08x}",
+                k,
+                case,
+                case as u32,
+                v.to_bits()
+            ));
+        }
+    }
+    golden::envelope_stream(|t, y, w| {
+        out.line(format_args!("ey {} {:08x} {:08x}", t, t as u32, y.to_bits()));
+        out.line(format_args!("ew {} {:08x} {:08x}", t, t as u32, w.to_bits()));
+    });
+    out.line(format_args!("@end envelope"));
+
     // Network kernels (firmware::nn::kernels): 10 000 streaming steps of each golden model.
     for g in GoldenModel::ALL {
         let n = g.outputs();
