@@ -264,4 +264,73 @@ fn trained_slow_run_three_times_faster_the_compensator_stays_with_the_model() {
         rms_comp <= 1.02 * rms_model,
         "compensator {rms_comp} N m RMS vs model {rms_model} N m RMS"
     );
+
+    // `evaluate` fades as the drive does and reports the share outside the envelope.
+    let fast_csv = dir.path().join("fast.csv");
+    dataset(&fast_csv, &fast);
+    let report = dir.path().join("eval.json");
+    cli(&[
+        "evaluate",
+        "--model",
+        &path(&net_path),
+        "--data",
+        &path(&fast_csv),
+        "--preset",
+        "drive",
+        "--joints",
+        "1",
+        "--report",
+        &path(&report),
+    ])
+    .expect("evaluates");
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    let row = &json["data"][0]["outputs"][0];
+    let share = row["outside_envelope_share"].as_f64().unwrap();
+    let (before, after) = (
+        row["rms_before"].as_f64().unwrap(),
+        row["rms_after"].as_f64().unwrap(),
+    );
+    println!("evaluate on the fast run: {share:.4} outside, RMS {before:.4} -> {after:.4} N m");
+    assert!(share > 0.5 && share < 1.0, "{share}");
+    assert!(after <= 1.02 * before, "{after} vs {before}");
+
+    // A network without an envelope: `export` refuses it and writes nothing, unless its
+    // training data is named; then it records the same envelope `train` recorded.
+    let mut bare = model.clone();
+    bare.envelope.clear();
+    let bare_path = dir.path().join("bare.safetensors");
+    io::write_model(&bare, &bare_path).unwrap();
+    let out = dir.path().join("model.rs");
+    let export = |extra: &[&str]| {
+        let mut args = vec![
+            "export",
+            "--model",
+            bare_path.to_str().unwrap(),
+            "--joints",
+            "1",
+            "--precision",
+            "f32",
+            "--allow-worse",
+            "--out",
+            out.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        cli(&args)
+    };
+    let err = export(&[]).unwrap_err();
+    assert!(format!("{err:#}").contains("--envelope-data") && !out.exists());
+    let training = format!("{},{}", path(&runs[0]), path(&runs[1]));
+    export(&["--envelope-data", &training]).expect("exports");
+    let text = std::fs::read_to_string(&out).unwrap();
+    let q = envelope.q_rad;
+    assert!(
+        text.contains(&format!(
+            "q_rad: firmware::envelope::Range::new({:?}, {:?})",
+            q.lo, q.hi
+        )),
+        "{}",
+        &text[..text.len().min(3000)]
+    );
+    assert!(!text.contains("JointEnvelope::UNBOUNDED"));
 }

@@ -175,7 +175,7 @@ fn sil_and_compnet_readme_lines_run_on_the_default_robot() {
     }
     // The linear-input network's export: net-ours = the block's 1-epoch paper network of
     // joints 4-6 (the PyTorch fixture's network has joints 1 and 2), robot.toml = the
-    // default robot, VALIDATION.csv = the block's dataset, /abs/path/ = the temporary
+    // default robot, VALIDATION.csv and TRAINING.csv = the block's dataset, /abs/path/ = the temporary
     // directory, host-tests/ from the workspace root.
     let export = compnet
         .iter()
@@ -191,6 +191,7 @@ fn sil_and_compnet_readme_lines_run_on_the_default_robot() {
             ),
             ("robot.toml", &fixture("robots/default.toml")),
             ("VALIDATION.csv", "train_features.csv"),
+            ("TRAINING.csv", "train_features.csv"),
             (
                 "host-tests/budgets.toml",
                 &root.join("host-tests/budgets.toml").display().to_string(),
