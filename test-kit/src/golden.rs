@@ -481,7 +481,7 @@ pub fn envelope_output(case: usize) -> [f32; ENVELOPE_VALUES] {
     let e = envelope_case(seed);
     let ranges = e.faded_ranges();
     let mut s: [f32; 5] = core::array::from_fn(|k| {
-        if case % 4 == 0 {
+        if case.is_multiple_of(4) {
             // Inside: a point of the range.
             let t = 0.5 + 0.5 * r(k as u32);
             ranges[k].lo + t * (ranges[k].hi - ranges[k].lo)

@@ -254,7 +254,7 @@ mod tests {
                 row(q, if k < 2000 { sweep } else { -0.25 })
             })
             .collect();
-        let e = record_joint(&[run.clone()]).unwrap();
+        let e = record_joint(std::slice::from_ref(&run)).unwrap();
         assert_eq!(e.q_rad, Range::new(-1.0, -1.0 + 3999.0 * 0.0005));
         assert_eq!(e.drive[2].lo, -0.25);
         assert!(e.friction[7].hi > 0.0 && e.friction[0] == Range::new(1.0, 1.0));
