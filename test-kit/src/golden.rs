@@ -522,10 +522,16 @@ pub fn envelope_output(case: usize) -> [f32; ENVELOPE_VALUES] {
 /// (`firmware::control::LstmPredictor`) on the int16 drive fixture network with a linear
 /// stage and an envelope whose faded inputs span [-2.5, 2.5] (the golden inputs reach
 /// about 4, so the stream goes in and out of it), over [`ENVELOPE_STEPS`] steps of the
-/// golden network inputs; emits per step the faded prediction and the weight.
+/// golden network inputs; emits per step the faded prediction and the weight. Then the
+/// same predictor behind a whole `Compensator` (a decoupled joint model as its model
+/// stage, the board's profile at 100 Hz) over the same steps: emits (from step
+/// `ENVELOPE_STEPS`) its limited torque and its flags' bits as f32 bits.
 pub fn envelope_stream(mut emit: impl FnMut(usize, f32, f32)) {
     use crate::fixtures::bench_drive_int16 as m;
-    use firmware::control::{JointState, LstmPredictor, PredictorInput, TorquePredictor};
+    use firmware::control::{
+        Compensator, DecoupledJointModel, JointProfile, JointState, LstmPredictor, PredictorInput,
+        TorquePredictor,
+    };
     let mut e = envelope_case(0x0E57_F00D);
     let wide = Range::new(-2.5, 2.5);
     e.q_rad = wide;
@@ -541,21 +547,49 @@ pub fn envelope_stream(mut emit: impl FnMut(usize, f32, f32)) {
         return;
     };
     let mut p = p.with_linear_stage([coefficients]).with_envelope([e]);
-    for t in 0..ENVELOPE_STEPS {
+    let state = |t: usize| {
         let [q, qd, qdd, tau, model] = network::inputs::<5>(t);
-        let input = PredictorInput {
-            joints: [JointState {
+        (
+            JointState {
                 q_ref_rad: q,
                 qd_ref_rad_s: qd,
                 qdd_ref_rad_s2: qdd,
                 tau_meas_nm: tau,
                 ..Default::default()
-            }],
+            },
+            model,
+        )
+    };
+    for t in 0..ENVELOPE_STEPS {
+        let (s, model) = state(t);
+        let input = PredictorInput {
+            joints: [s],
             own_joint: 0,
             model_nm: [model],
         };
         let y = p.predict_nm(&input)[0];
         emit(t, y, p.envelope_weights()[0]);
+    }
+    p.reset();
+    let model = DecoupledJointModel::<1> {
+        inertia_kg_m2: [0.5],
+        viscous_nm_s_rad: [1.5],
+        coulomb_nm: [2.0],
+        coulomb_smoothing_rad_s: [0.02],
+        gravity_nm: [3.0],
+        gravity_phase_rad: [0.25],
+    };
+    let Ok(mut c) = Compensator::new(JointProfile::BOARD.compensator_config(100, 0), model, p)
+    else {
+        return;
+    };
+    for t in 0..ENVELOPE_STEPS {
+        let o = c.tick(&state(t).0, t as u32 * 10_000);
+        emit(
+            ENVELOPE_STEPS + t,
+            o.torque_nm,
+            f32::from_bits(o.faults.bits()),
+        );
     }
 }
 
@@ -580,9 +614,17 @@ mod tests {
 
     #[test]
     fn the_envelope_suite_goes_in_and_out_of_the_envelope() {
-        let (mut inside, mut faded, mut zero) = (0, 0, 0);
-        envelope_stream(|_, y, w| {
-            assert!(y.is_finite() && (0.0..=1.0).contains(&w));
+        let (mut inside, mut faded, mut zero, mut outside_flags) = (0, 0, 0, 0);
+        envelope_stream(|t, y, w| {
+            assert!(y.is_finite());
+            if t >= ENVELOPE_STEPS {
+                let flags = firmware::control::FaultFlags::from_bits(w.to_bits());
+                if flags.contains(firmware::control::FaultFlags::ENVELOPE_OUTSIDE) {
+                    outside_flags += 1;
+                }
+                return;
+            }
+            assert!((0.0..=1.0).contains(&w));
             match w {
                 1.0 => inside += 1,
                 0.0 => zero += 1,
@@ -592,6 +634,11 @@ mod tests {
         assert!(
             inside > 0 && faded > 0 && zero > 0,
             "{inside} {faded} {zero}"
+        );
+        // The compensator flags the ticks outside, not all of them.
+        assert!(
+            outside_flags > 0 && outside_flags < ENVELOPE_STEPS,
+            "{outside_flags}"
         );
         let cases: std::vec::Vec<_> = (0..ENVELOPE_CASES).map(envelope_output).collect();
         assert!(cases.iter().any(|c| c[0] == 1.0) && cases.iter().any(|c| c[0] == 0.0));

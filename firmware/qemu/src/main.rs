@@ -154,7 +154,7 @@ fn main() -> ! {
 
     out.line(format_args!(
         "@suite envelope {}",
-        golden::ENVELOPE_CASES * golden::ENVELOPE_VALUES + 2 * golden::ENVELOPE_STEPS
+        golden::ENVELOPE_CASES * golden::ENVELOPE_VALUES + 4 * golden::ENVELOPE_STEPS
     ));
     for case in 0..golden::ENVELOPE_CASES {
         for (k, v) in golden::envelope_output(case).iter().enumerate() {
