@@ -232,6 +232,11 @@ pub fn parse_onnx_model(bytes: &[u8]) -> Result<LstmModel> {
                 n.domain
             );
         }
+        // Every node the walk may follow has its first output (found by the fuzzer: an
+        // `Add` without outputs panicked).
+        if n.output.first().is_none_or(String::is_empty) {
+            bail!("{}: has no output", node_label(n));
+        }
         for i in &n.input {
             if !i.is_empty() {
                 consumers.entry(i.as_str()).or_default().push(k);

@@ -212,3 +212,25 @@ fn a_reshape_that_does_not_drop_the_direction_axis_is_refused() {
     );
     assert!(e.contains("Reshape") && e.contains("expected [time, batch, 16]"), "{e}");
 }
+
+#[test]
+fn a_node_without_an_output_is_refused_not_a_panic() {
+    // Found by the fuzzer on the dynamo export: an `Add` with its output removed.
+    let bytes = std::fs::read(fixture("torch_lstm_dynamo.onnx")).unwrap();
+    let mut m = ModelProto::parse_from_bytes(&bytes).unwrap();
+    let n = m
+        .graph
+        .as_mut()
+        .unwrap()
+        .node
+        .iter_mut()
+        .find(|n| n.op_type == "Add")
+        .unwrap();
+    n.output.clear();
+    let name = n.name.clone();
+    refused(
+        "an Add without output",
+        &m.write_to_bytes().unwrap(),
+        &format!("node '{name}' (Add): has no output"),
+    );
+}
