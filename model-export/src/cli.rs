@@ -176,7 +176,10 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
     if let Command::Excite(a) = &cli.command {
         let outs = excite_outputs(a);
         let outs: Vec<&Path> = outs.iter().map(PathBuf::as_path).collect();
-        artifacts::refuse_outputs_that_are_inputs(&a.robot.as_deref().into_iter().collect::<Vec<_>>(), &outs)?;
+        artifacts::refuse_outputs_that_are_inputs(
+            &a.robot.as_deref().into_iter().collect::<Vec<_>>(),
+            &outs,
+        )?;
     }
     match cli.command {
         Command::Excite(args) => crate::cmd::excite::run(&args),

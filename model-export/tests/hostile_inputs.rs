@@ -112,13 +112,27 @@ fn urdf_limits_inertias_and_names_no_body_has_are_refused_naming_file_line_and_f
         d,
         "equal_limits.urdf",
         &urdf(r#"lower="1" upper="1""#, GOOD_INERTIA, "joint2"),
-        &["equal_limits.urdf:16:", "joint2", "limit", "ordered and distinct"],
+        &[
+            "equal_limits.urdf:16:",
+            "joint2",
+            "limit",
+            "ordered and distinct",
+        ],
     );
     excite_refused(
         d,
         "triangle.urdf",
-        &urdf(GOOD_LIMITS, r#"ixx="0.001" iyy="0.001" izz="0.005""#, "joint2"),
-        &["triangle.urdf:8:", "link2", "inertia", "triangle inequality"],
+        &urdf(
+            GOOD_LIMITS,
+            r#"ixx="0.001" iyy="0.001" izz="0.005""#,
+            "joint2",
+        ),
+        &[
+            "triangle.urdf:8:",
+            "link2",
+            "inertia",
+            "triangle inequality",
+        ],
     );
     let long = "j".repeat(200_000);
     excite_refused(
@@ -254,7 +268,11 @@ fn the_network_option_takes_an_onnx_file_from_the_default_exporter() {
     ])
     .expect("export of the dynamo ONNX network");
     let text = std::fs::read_to_string(&out).unwrap();
-    assert!(text.contains("CONTENT_HASH"), "{}", &text[..200.min(text.len())]);
+    assert!(
+        text.contains("CONTENT_HASH"),
+        "{}",
+        &text[..200.min(text.len())]
+    );
 }
 
 #[test]
@@ -290,4 +308,49 @@ fn evaluate_refuses_a_run_of_fewer_than_two_rows() {
         );
         assert!(!report.exists());
     }
+}
+
+#[test]
+fn logged_angles_thousands_of_turns_beyond_the_limits_are_refused_at_their_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = dir.path().join("turns.csv");
+    // Layout `torque`: time, q1..q6, qd1..qd6, tau1..tau6; line 201 (no header) holds a
+    // joint-1 angle 2000 turns out.
+    let mut csv = String::new();
+    for k in 0..400 {
+        let t = k as f64 * 0.01;
+        let q1 = if k == 200 {
+            2000.0 * std::f64::consts::TAU
+        } else {
+            0.5 * t.sin()
+        };
+        let mut row = vec![t, q1];
+        row.extend((1..6).map(|j| 0.3 * (t + j as f64).sin()));
+        row.extend((0..6).map(|j| 0.3 * (t + j as f64).cos()));
+        row.extend((0..6).map(|j| (t * j as f64).sin()));
+        csv += &row
+            .iter()
+            .map(|v| v.to_string())
+            .collect::<Vec<_>>()
+            .join(",");
+        csv.push('\n');
+    }
+    std::fs::write(&log, csv).unwrap();
+    let out = dir.path().join("m.json");
+    let robot = workspace().join("robots/default.toml");
+    refused(
+        &[
+            "identify",
+            "--robot",
+            &s(&robot),
+            "--layout",
+            "torque",
+            "--log",
+            &s(&log),
+            "-o",
+            &s(&out),
+        ],
+        &["turns.csv, line 201, joint 1", "beyond the robot's limits"],
+    );
+    assert!(!out.exists());
 }

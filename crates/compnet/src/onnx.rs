@@ -644,9 +644,11 @@ fn walk<'a>(g: &mut Graph<'a>, x: &'a str, meta: &HashMap<&str, &str>) -> Result
             k = step(g, cur, "output layer")?;
             let n = &nodes[k];
             let shape = match (n.op_type.as_str(), n.input.as_slice()) {
-                ("Reshape", [data, shape]) if data == cur => ints(g.constant(shape).with_context(
-                    || format!("{}: the shape is not a constant", node_label(n)),
-                )?),
+                ("Reshape", [data, shape]) if data == cur => {
+                    ints(g.constant(shape).with_context(|| {
+                        format!("{}: the shape is not a constant", node_label(n))
+                    })?)
+                }
                 _ => bail!(
                     "{}: expected Reshape of the LSTM's output to [time, batch, hidden]",
                     node_label(n)

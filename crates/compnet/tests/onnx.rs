@@ -144,7 +144,10 @@ fn an_input_layer_straight_into_the_lstm_imports_as_the_linear_input_layer() {
 /// Every exporter variant of scripts/make_onnx_fixture.py: (file, onnxruntime reference).
 const VARIANTS: [(&str, &str); 4] = [
     ("torch_lstm.onnx", "onnx_reference.csv"),
-    ("torch_lstm_time_first.onnx", "onnx_reference_time_first.csv"),
+    (
+        "torch_lstm_time_first.onnx",
+        "onnx_reference_time_first.csv",
+    ),
     ("torch_lstm_dynamo.onnx", "onnx_reference_dynamo.csv"),
     (
         "torch_lstm_dynamo_batch_first.onnx",
@@ -210,7 +213,10 @@ fn a_reshape_that_does_not_drop_the_direction_axis_is_refused() {
         "{:#}",
         onnx::parse_onnx_model(&m.write_to_bytes().unwrap()).unwrap_err()
     );
-    assert!(e.contains("Reshape") && e.contains("expected [time, batch, 16]"), "{e}");
+    assert!(
+        e.contains("Reshape") && e.contains("expected [time, batch, 16]"),
+        "{e}"
+    );
 }
 
 #[test]

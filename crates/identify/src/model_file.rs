@@ -227,9 +227,8 @@ impl ModelFile {
     fn check_plausible(&self) -> anyhow::Result<()> {
         use artifacts::plausible;
         if let Some(eps) = self.model_terms.coulomb_smoothing_rad_s {
-            plausible::positive(eps).map_err(|m| {
-                anyhow::anyhow!("field model_terms.coulomb_smoothing_rad_s: {m}")
-            })?;
+            plausible::positive(eps)
+                .map_err(|m| anyhow::anyhow!("field model_terms.coulomb_smoothing_rad_s: {m}"))?;
         }
         let names = self
             .modelled_joints
@@ -274,7 +273,11 @@ fn null_fields(v: &serde_json::Value, at: String, out: &mut Vec<String>) {
         }
         serde_json::Value::Object(o) => {
             for (k, x) in o {
-                let p = if at.is_empty() { k.clone() } else { format!("{at}.{k}") };
+                let p = if at.is_empty() {
+                    k.clone()
+                } else {
+                    format!("{at}.{k}")
+                };
                 null_fields(x, p, out);
             }
         }
