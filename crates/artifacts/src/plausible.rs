@@ -84,8 +84,8 @@ pub fn rigid_body(mass_kg: f64, inertia: &[[f64; 3]; 3]) -> Result<(), String> {
     if mass_kg < 0.0 {
         return Err(format!("negative mass {mass_kg} kg"));
     }
-    for r in 0..3 {
-        for c in 0..r {
+    for (r, c) in [(1, 0), (2, 0), (2, 1)] {
+        {
             let (a, b) = (inertia[r][c], inertia[c][r]);
             if (a - b).abs() > 1e-9 * (a.abs() + b.abs()).max(f64::MIN_POSITIVE) {
                 return Err(format!("inertia is not symmetric ({a} and {b})"));
@@ -99,12 +99,9 @@ pub fn rigid_body(mass_kg: f64, inertia: &[[f64; 3]; 3]) -> Result<(), String> {
             "inertia {inertia:?} is not positive semi-definite (no physical body has it)"
         ));
     }
-    let mut second = [[0.0; 3]; 3];
-    for r in 0..3 {
-        for c in 0..3 {
-            second[r][c] = -inertia[r][c] + if r == c { trace / 2.0 } else { 0.0 };
-        }
-    }
+    let second: [[f64; 3]; 3] = std::array::from_fn(|r| {
+        std::array::from_fn(|c| -inertia[r][c] + if r == c { trace / 2.0 } else { 0.0 })
+    });
     if !semi_definite(&second, tol) {
         return Err(format!(
             "inertia {inertia:?} violates the triangle inequality (a principal moment exceeds the sum of the other two: no physical body has it)"

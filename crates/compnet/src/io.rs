@@ -308,7 +308,7 @@ pub fn check_reference(
     reference: &std::path::Path,
 ) -> anyhow::Result<f64> {
     let t = Table::read(reference)?;
-    if t.len() == 0 {
+    if t.is_empty() {
         bail!(
             "{}: the reference has no rows: nothing to compare the network with",
             reference.display()
