@@ -130,8 +130,36 @@ fn files(command: &Command) -> (Vec<&Path>, Vec<&Path>) {
                 .chain(a.accuracy_json.as_deref())
                 .collect(),
         ),
+        Command::Simulate(a) => (
+            [&a.plant.robot, &a.plant.plant, &a.trajectory]
+                .into_iter()
+                .flatten()
+                .map(PathBuf::as_path)
+                .collect(),
+            vec![&a.output],
+        ),
+        Command::Sil { wrist: a } => (
+            [&a.model, &a.lstm, &a.robot, &a.plant, &a.trajectory]
+                .into_iter()
+                .flatten()
+                .map(PathBuf::as_path)
+                .collect(),
+            [&a.json, &a.markdown]
+                .into_iter()
+                .flatten()
+                .map(PathBuf::as_path)
+                .collect(),
+        ),
         _ => (Vec::new(), Vec::new()),
     }
+}
+
+/// The files `excite` writes (they are derived from `--out-dir` and `--name`).
+fn excite_outputs(a: &crate::cmd::excite::ExciteArgs) -> Vec<PathBuf> {
+    ["json", "csv", "svg"]
+        .iter()
+        .map(|ext| a.out_dir.join(format!("{}.{ext}", a.name)))
+        .collect()
 }
 
 /// Parses the arguments after `model-export` and runs them, as the binary does with its
@@ -145,6 +173,14 @@ pub fn run_args(args: &[&str]) -> anyhow::Result<()> {
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     let (inputs, outputs) = files(&cli.command);
     artifacts::refuse_outputs_that_are_inputs(&inputs, &outputs)?;
+    if let Command::Excite(a) = &cli.command {
+        let outs = excite_outputs(a);
+        let outs: Vec<&Path> = outs.iter().map(PathBuf::as_path).collect();
+        artifacts::refuse_outputs_that_are_inputs(
+            &a.robot.as_deref().into_iter().collect::<Vec<_>>(),
+            &outs,
+        )?;
+    }
     match cli.command {
         Command::Excite(args) => crate::cmd::excite::run(&args),
         Command::Primitives { points } => {

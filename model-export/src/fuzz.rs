@@ -264,6 +264,22 @@ pub fn safetensors_target(data: &[u8]) {
     }
 }
 
+/// Network ONNX (any exporter's variant): parse; a model that parses streams finite
+/// outputs on a few steps of bounded inputs.
+pub fn onnx_target(data: &[u8]) {
+    if let Ok(m) = compnet::onnx::parse_onnx_model(data) {
+        let inputs: Vec<Vec<f32>> = (0..3)
+            .map(|k| (0..m.dims.input).map(|i| (k + i) as f32 * 0.1).collect())
+            .collect();
+        if let Ok(out) = m.stream(&inputs) {
+            assert!(
+                out.iter().flatten().all(|v| v.is_finite()),
+                "a parsed ONNX network with non-finite outputs"
+            );
+        }
+    }
+}
+
 /// Excitation JSON (`dir/exc.json`): load as a commanded trajectory (one period) and as
 /// an excitation file; a trajectory that loads is finite over its whole period.
 pub fn excitation_json_target(dir: &Path, data: &[u8]) {

@@ -213,6 +213,32 @@ fn fuzz_safetensors() {
     });
 }
 
+/// The ONNX reader on each exporter variant's corpus (`fuzz/corpus/onnx_*`, written by
+/// scripts/make_onnx_fixture.py): parse, and stream a network that parses.
+fn fuzz_onnx(variant: &str) {
+    check(&format!("onnx_{variant}"), fuzz::onnx_target);
+}
+
+#[test]
+fn fuzz_onnx_torchscript() {
+    fuzz_onnx("torchscript");
+}
+
+#[test]
+fn fuzz_onnx_time_first() {
+    fuzz_onnx("time_first");
+}
+
+#[test]
+fn fuzz_onnx_dynamo() {
+    fuzz_onnx("dynamo");
+}
+
+#[test]
+fn fuzz_onnx_dynamo_batch_first() {
+    fuzz_onnx("dynamo_batch_first");
+}
+
 /// Found by the long run: a network whose weights reach 3e38 or whose input standard
 /// deviation is subnormal parsed, and its outputs overflowed to infinity or NaN.
 #[test]

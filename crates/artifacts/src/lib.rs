@@ -4,6 +4,8 @@
 #![deny(unsafe_code)]
 #![warn(missing_docs)]
 
+pub mod plausible;
+
 use std::io::Write;
 use std::path::Path;
 

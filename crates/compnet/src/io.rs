@@ -25,8 +25,12 @@ use safetensors::{Dtype, SafeTensors, tensor::TensorView};
 use std::collections::HashMap;
 use std::path::Path;
 
-/// Reads a model from a safetensors file; names the file and the tensor on any error.
+/// Reads a model from a safetensors file, or from an ONNX file (`.onnx`, see
+/// [`crate::onnx`]); names the file and the tensor or node on any error.
 pub fn read_model(path: &Path) -> Result<LstmModel> {
+    if crate::onnx::is_onnx(path) {
+        return crate::onnx::read_onnx_model(path);
+    }
     read_model_with(path, None)
 }
 
@@ -317,6 +321,12 @@ pub fn check_reference(
     reference: &std::path::Path,
 ) -> anyhow::Result<f64> {
     let t = Table::read(reference)?;
+    if t.is_empty() {
+        bail!(
+            "{}: the reference has no rows: nothing to compare the network with",
+            reference.display()
+        );
+    }
     let xs: Vec<&[f32]> = (0..model.dims.input)
         .map(|k| t.column(&format!("x{k}")))
         .collect::<Result<_>>()?;

@@ -113,6 +113,17 @@ impl LstmModel {
 
     /// Checks shapes, finiteness and positive standard deviations.
     pub fn validate(&self) -> Result<()> {
+        artifacts::plausible::name(&self.preset)
+            .map_err(|m| anyhow::anyhow!("metadata `preset`: {m}"))?;
+        for (key, names) in [
+            ("input_names", &self.input_names),
+            ("output_names", &self.output_names),
+        ] {
+            for (k, n) in names.iter().enumerate() {
+                artifacts::plausible::name(n)
+                    .map_err(|m| anyhow::anyhow!("metadata `{key}`, name {}: {m}", k + 1))?;
+            }
+        }
         self.streamer()?;
         for (name, v) in self.tensors() {
             if let Some(k) = v.iter().position(|x| !x.is_finite()) {

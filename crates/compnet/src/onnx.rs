@@ -1,22 +1,26 @@
-//! ONNX interchange: a network exported from PyTorch with `torch.onnx.export` imports to
-//! the same [`LstmModel`] as its safetensors file.
+//! ONNX interchange: a network exported from PyTorch with `torch.onnx.export` (either
+//! exporter: the TorchScript one, `dynamo=False`, and the dynamo-based default of current
+//! PyTorch; an LSTM with `batch_first` either way) imports to the same [`LstmModel`] as
+//! its safetensors file.
 //!
-//! The supported graph, from its one input `x` `[batch, time, I]` to its one output:
+//! The supported graph, from its one input `x` (`[batch, time, I]`, or `[time, batch, I]`
+//! for a `batch_first=False` LSTM) to its one output:
 //!
 //! | stage | nodes | maps to |
 //! |---|---|---|
 //! | input normalisation (optional) | `Sub(x, mean)`, `Div(·, std)` | `input_mean`, `input_std` |
 //! | input layer | `MatMul(·, W[I, E])` + `Add(b[E])`, or `Gemm` | `input.weight`, `input.bias` |
 //! | activation | `Tanh`, or none | the firmware's input activation (tanh or linear) |
-//! | LSTM | `Transpose(perm 1,0,2)` + `LSTM` (layout 0) + `Squeeze(axis 1)` + `Transpose(perm 1,0,2)`, or `LSTM` (layout 1) + `Squeeze(axis 2)` | `W`, `R`, `B` in ONNX gate order i, o, f, c, reordered to PyTorch's i, f, g, o |
+//! | LSTM | `LSTM` (layout 0), after `Transpose(perm 1,0,2)` for a batch-first input (then transposed back after it), or `LSTM` (layout 1); its direction axis dropped by `Squeeze`, or by `Transpose(perm 0,2,1,3)` + `Reshape` to `[T, B, H]` (dynamo) | `W`, `R`, `B` in ONNX gate order i, o, f, c, reordered to PyTorch's i, f, g, o |
 //! | output layer | `MatMul(·, W[H, O])` + `Add(b[O])`, or `Gemm` | `output.weight`, `output.bias` |
 //! | output scaling (optional) | `Mul(·, std)`, `Add(·, mean)` | `output_std`, `output_mean` |
 //!
-//! The LSTM is one forward layer with the default activations, no clip, no peepholes, no
-//! sequence lengths, and a zero initial state (absent, a zero constant, or the
-//! `Shape`…`ConstantOfShape` zeros the exporter builds). Constants are initializers or
-//! `Constant` nodes, in F32 or F64. Anything else (another node on the path, a second
-//! consumer, another activation, a second layer) is refused with a message naming the
+//! The LSTM is one forward layer (a graph with several LSTM nodes, `num_layers > 1`, is
+//! refused saying how many it found: the firmware runs one) with the default activations,
+//! no clip, no peepholes, no sequence lengths, and a zero initial state (absent, a zero
+//! constant, or the `Shape`…`ConstantOfShape` zeros the exporter builds). Constants are
+//! initializers or `Constant` nodes, in F32 or F64. Anything else (another node on the
+//! path, a second consumer, another activation) is refused with a message naming the
 //! node. Metadata (`metadata_props`): `input_names`, `output_names`, `preset`, as in the
 //! safetensors file (optional).
 
@@ -205,6 +209,20 @@ pub fn parse_onnx_model(bytes: &[u8]) -> Result<LstmModel> {
             );
         }
     }
+    let lstms: Vec<String> = g
+        .node
+        .iter()
+        .filter(|n| n.op_type == "LSTM")
+        .map(node_label)
+        .collect();
+    if lstms.len() > 1 {
+        bail!(
+            "the graph has {} LSTM layers ({}): the firmware runs one LSTM layer (export \
+             `nn.LSTM(..., num_layers=1)`)",
+            lstms.len(),
+            lstms.join(", ")
+        );
+    }
     let mut consumers: HashMap<&str, Vec<usize>> = HashMap::new();
     for (k, n) in g.node.iter().enumerate() {
         if !n.domain.is_empty() && n.domain != "ai.onnx" {
@@ -213,6 +231,11 @@ pub fn parse_onnx_model(bytes: &[u8]) -> Result<LstmModel> {
                 node_label(n),
                 n.domain
             );
+        }
+        // Every node the walk may follow has its first output (found by the fuzzer: an
+        // `Add` without outputs panicked).
+        if n.output.first().is_none_or(String::is_empty) {
+            bail!("{}: has no output", node_label(n));
         }
         for i in &n.input {
             if !i.is_empty() {
@@ -460,7 +483,7 @@ fn walk<'a>(g: &mut Graph<'a>, x: &'a str, meta: &HashMap<&str, &str>) -> Result
 
     // LSTM, with the exporter's transposes.
     k = step(g, cur, "LSTM")?;
-    let mut time_major = false;
+    let mut transposed = false;
     if nodes[k].op_type == "Transpose" {
         let perm = attr(&nodes[k], "perm")
             .map(|a| a.ints.clone())
@@ -471,7 +494,7 @@ fn walk<'a>(g: &mut Graph<'a>, x: &'a str, meta: &HashMap<&str, &str>) -> Result
                 node_label(&nodes[k])
             );
         }
-        time_major = true;
+        transposed = true;
         g.visited[k] = true;
         cur = nodes[k].output[0].as_str();
         k = step(g, cur, "LSTM")?;
@@ -506,10 +529,14 @@ fn walk<'a>(g: &mut Graph<'a>, x: &'a str, meta: &HashMap<&str, &str>) -> Result
     if attr(n, "clip").is_some() || attr_i(n, "input_forget", 0) != 0 {
         bail!("{label}: clip and input_forget are not supported");
     }
-    if (layout == 0) != time_major || !(layout == 0 || layout == 1) {
+    // Three ways in: a batch-first input transposed to [time, batch, features] for
+    // layout 0 (TorchScript, `batch_first=True`), a batch-first input read with layout 1,
+    // or a time-first input straight into layout 0 (`batch_first=False`). Streamed one
+    // sequence at a time, all three are the same network.
+    if !(layout == 0 || layout == 1) || (layout == 1 && transposed) {
         bail!(
-            "{label}: layout {layout} with {} input: the batch-first input must reach it as [time, batch, features] (layout 0 after Transpose) or with layout 1",
-            if time_major {
+            "{label}: layout {layout} with {} input: the LSTM must read [time, batch, features] (layout 0) or [batch, time, features] (layout 1, untransposed)",
+            if transposed {
                 "a transposed"
             } else {
                 "an untransposed"
@@ -580,34 +607,71 @@ fn walk<'a>(g: &mut Graph<'a>, x: &'a str, meta: &HashMap<&str, &str>) -> Result
     let b_hh = reorder(&b[4 * h..], h);
     cur = n.output[0].as_str();
 
-    // Back to [batch, time, H].
+    // Back to [batch, time, H]: the LSTM's direction axis dropped, by `Squeeze`
+    // (TorchScript exporter) or by `Transpose` [T, 1, B, H] -> [T, B, 1, H] and `Reshape`
+    // to [T, B, H] (the dynamo-based exporter, layout 0).
     k = step(g, cur, "output layer")?;
     let squeeze_axis = if layout == 0 { 1 } else { 2 };
-    if nodes[k].op_type != "Squeeze" {
-        bail!(
-            "{}: expected Squeeze of the LSTM's direction axis",
+    match nodes[k].op_type.as_str() {
+        "Squeeze" => {
+            let axes = match nodes[k].input.get(1) {
+                Some(a) => ints(g.constant(a).with_context(|| {
+                    format!("{}: axes are not a constant", node_label(&nodes[k]))
+                })?),
+                None => attr(&nodes[k], "axes")
+                    .map(|a| a.ints.clone())
+                    .unwrap_or_default(),
+            };
+            if axes != [squeeze_axis] {
+                bail!(
+                    "{}: axes {axes:?}, expected [{squeeze_axis}] (the LSTM's direction axis)",
+                    node_label(&nodes[k])
+                );
+            }
+        }
+        "Transpose" if layout == 0 => {
+            let perm = attr(&nodes[k], "perm")
+                .map(|a| a.ints.clone())
+                .unwrap_or_default();
+            if perm != [0, 2, 1, 3] {
+                bail!(
+                    "{}: perm {perm:?}, expected [0, 2, 1, 3] (the LSTM's direction axis next to its hidden axis)",
+                    node_label(&nodes[k])
+                );
+            }
+            g.visited[k] = true;
+            cur = nodes[k].output[0].as_str();
+            k = step(g, cur, "output layer")?;
+            let n = &nodes[k];
+            let shape = match (n.op_type.as_str(), n.input.as_slice()) {
+                ("Reshape", [data, shape]) if data == cur => {
+                    ints(g.constant(shape).with_context(|| {
+                        format!("{}: the shape is not a constant", node_label(n))
+                    })?)
+                }
+                _ => bail!(
+                    "{}: expected Reshape of the LSTM's output to [time, batch, hidden]",
+                    node_label(n)
+                ),
+            };
+            if attr_i(n, "allowzero", 0) != 0
+                || !matches!(shape[..], [a, b, c] if a != 0 && b != 0 && (c == h as i64 || c == -1))
+            {
+                bail!(
+                    "{}: shape {shape:?}, expected [time, batch, {h}] (the LSTM's direction axis dropped)",
+                    node_label(n)
+                );
+            }
+        }
+        _ => bail!(
+            "{}: expected Squeeze of the LSTM's direction axis (or Transpose + Reshape)",
             node_label(&nodes[k])
-        );
-    }
-    let axes = match nodes[k].input.get(1) {
-        Some(a) => ints(
-            g.constant(a)
-                .with_context(|| format!("{}: axes are not a constant", node_label(&nodes[k])))?,
         ),
-        None => attr(&nodes[k], "axes")
-            .map(|a| a.ints.clone())
-            .unwrap_or_default(),
-    };
-    if axes != [squeeze_axis] {
-        bail!(
-            "{}: axes {axes:?}, expected [{squeeze_axis}] (the LSTM's direction axis)",
-            node_label(&nodes[k])
-        );
     }
     g.visited[k] = true;
     cur = nodes[k].output[0].as_str();
     k = step(g, cur, "output layer")?;
-    if time_major {
+    if transposed {
         let perm = attr(&nodes[k], "perm")
             .map(|a| a.ints.clone())
             .unwrap_or_default();

@@ -140,3 +140,103 @@ fn an_input_layer_straight_into_the_lstm_imports_as_the_linear_input_layer() {
     );
     assert_eq!(linear.tensors(), tanh.tensors());
 }
+
+/// Every exporter variant of scripts/make_onnx_fixture.py: (file, onnxruntime reference).
+const VARIANTS: [(&str, &str); 4] = [
+    ("torch_lstm.onnx", "onnx_reference.csv"),
+    (
+        "torch_lstm_time_first.onnx",
+        "onnx_reference_time_first.csv",
+    ),
+    ("torch_lstm_dynamo.onnx", "onnx_reference_dynamo.csv"),
+    (
+        "torch_lstm_dynamo_batch_first.onnx",
+        "onnx_reference_dynamo_batch_first.csv",
+    ),
+];
+
+#[test]
+fn both_exporters_either_layout_import_to_the_safetensors_network_and_match_onnxruntime() {
+    // The same seeded network in every file: TorchScript and the dynamo-based default
+    // exporter, batch-first and time-first (PyTorch's default) LSTMs.
+    let st = compnet::io::read_model(&fixture("torch_lstm.safetensors")).unwrap();
+    for (file, reference) in VARIANTS {
+        let m = onnx::read_onnx_model(&fixture(file)).unwrap();
+        assert_eq!(m.dims, st.dims, "{file}");
+        assert_eq!(m.tensors(), st.tensors(), "{file}");
+        assert_eq!(m.input_names, st.input_names, "{file}");
+        // `io::read_model` takes the ONNX file by its extension.
+        assert_eq!(
+            compnet::io::read_model(&fixture(file)).unwrap().tensors(),
+            st.tensors()
+        );
+        let err = compnet::io::check_reference(&m, &fixture(reference)).unwrap();
+        println!("{file}: firmware f32 step vs {reference}: max error {err:.3e} of the output RMS");
+        assert!(err < 1e-5, "{file}: {err}");
+    }
+}
+
+#[test]
+fn a_two_layer_lstm_is_refused_naming_the_layers_and_the_firmwares_one() {
+    for file in ["torch_lstm_2layer.onnx", "torch_lstm_2layer_dynamo.onnx"] {
+        let e = format!("{:#}", onnx::read_onnx_model(&fixture(file)).unwrap_err());
+        assert!(
+            e.contains(file)
+                && e.contains("the graph has 2 LSTM layers")
+                && e.contains("the firmware runs one LSTM layer"),
+            "{file}: {e}"
+        );
+    }
+}
+
+#[test]
+fn a_reshape_that_does_not_drop_the_direction_axis_is_refused() {
+    let bytes = std::fs::read(fixture("torch_lstm_dynamo.onnx")).unwrap();
+    let mut m = ModelProto::parse_from_bytes(&bytes).unwrap();
+    let g = m.graph.as_mut().unwrap();
+    let shape = g
+        .node
+        .iter()
+        .find(|n| n.op_type == "Reshape")
+        .unwrap()
+        .input[1]
+        .clone();
+    let t = g.initializer.iter_mut().find(|t| t.name == shape);
+    let t = match t {
+        Some(t) => t,
+        None => panic!("the Reshape's shape {shape} is not an initializer"),
+    };
+    // [T, B, H] -> [T, B * H / 2, 2]: same size, other meaning.
+    t.raw_data.clear();
+    t.int64_data = vec![400, 8, 2];
+    let e = format!(
+        "{:#}",
+        onnx::parse_onnx_model(&m.write_to_bytes().unwrap()).unwrap_err()
+    );
+    assert!(
+        e.contains("Reshape") && e.contains("expected [time, batch, 16]"),
+        "{e}"
+    );
+}
+
+#[test]
+fn a_node_without_an_output_is_refused_not_a_panic() {
+    // Found by the fuzzer on the dynamo export: an `Add` with its output removed.
+    let bytes = std::fs::read(fixture("torch_lstm_dynamo.onnx")).unwrap();
+    let mut m = ModelProto::parse_from_bytes(&bytes).unwrap();
+    let n = m
+        .graph
+        .as_mut()
+        .unwrap()
+        .node
+        .iter_mut()
+        .find(|n| n.op_type == "Add")
+        .unwrap();
+    n.output.clear();
+    let name = n.name.clone();
+    refused(
+        "an Add without output",
+        &m.write_to_bytes().unwrap(),
+        &format!("node '{name}' (Add): has no output"),
+    );
+}

@@ -215,15 +215,73 @@ impl ModelFile {
                 ver
             );
         }
-        serde_json::from_value(v)
-            .map_err(|e| anyhow::anyhow!("{}: invalid model file: {e}", path.display()))
+        let m: Self = serde_json::from_value(v)
+            .map_err(|e| anyhow::anyhow!("{}: invalid model file: {e}", path.display()))?;
+        m.check_plausible()
+            .map_err(|e| anyhow::anyhow!("{}, {e}", path.display()))?;
+        Ok(m)
     }
 
-    /// Writes atomically (temp file + rename).
+    /// The plausibility layer on what a model file says (beyond its schema): the Coulomb
+    /// smoothing width above zero, names without control characters.
+    fn check_plausible(&self) -> anyhow::Result<()> {
+        use artifacts::plausible;
+        if let Some(eps) = self.model_terms.coulomb_smoothing_rad_s {
+            plausible::positive(eps)
+                .map_err(|m| anyhow::anyhow!("field model_terms.coulomb_smoothing_rad_s: {m}"))?;
+        }
+        let names = self
+            .modelled_joints
+            .iter()
+            .chain(self.locked_joints.iter().map(|l| &l.name));
+        for (k, j) in names.enumerate() {
+            plausible::name(j).map_err(|m| anyhow::anyhow!("joint name {}: {m}", k + 1))?;
+        }
+        Ok(())
+    }
+
+    /// Writes atomically (temp file + rename), only a file that reads back to this very
+    /// model: a NaN or infinite number (which JSON would write as `null`) is refused,
+    /// naming the fields written as `null`, and nothing is written.
     pub fn write(&self, path: &Path) -> anyhow::Result<()> {
-        let mut text = serde_json::to_string_pretty(self)?;
+        let v = serde_json::to_value(self)?;
+        let back: Option<Self> = serde_json::from_value(v.clone()).ok();
+        if back.as_ref() != Some(self) {
+            let mut nulls = Vec::new();
+            null_fields(&v, String::new(), &mut nulls);
+            anyhow::bail!(
+                "{}: refusing to write a model with a number that is not finite (written as \
+                 null, it would not read back): fields {}",
+                path.display(),
+                nulls.join(", ")
+            );
+        }
+        let mut text = serde_json::to_string_pretty(&v)?;
         text.push('\n');
         write_atomic(path, text.as_bytes())
+    }
+}
+
+/// The paths of the `null` values in `v` (at most 8 listed).
+fn null_fields(v: &serde_json::Value, at: String, out: &mut Vec<String>) {
+    match v {
+        serde_json::Value::Null if out.len() < 8 => out.push(at),
+        serde_json::Value::Array(a) => {
+            for (k, x) in a.iter().enumerate() {
+                null_fields(x, format!("{at}[{k}]"), out);
+            }
+        }
+        serde_json::Value::Object(o) => {
+            for (k, x) in o {
+                let p = if at.is_empty() {
+                    k.clone()
+                } else {
+                    format!("{at}.{k}")
+                };
+                null_fields(x, p, out);
+            }
+        }
+        _ => {}
     }
 }
 
@@ -290,5 +348,45 @@ mod tests {
         assert!(m.write(&bad).is_err());
         assert!(!bad.exists());
         assert_eq!(std::fs::read_dir(d.path()).unwrap().count(), 1);
+    }
+
+    #[test]
+    fn a_non_finite_number_is_never_written_and_a_non_positive_smoothing_never_read() {
+        let d = tempfile::tempdir().unwrap();
+        let p = d.path().join("m.json");
+        std::fs::write(&p, "the previous model\n").unwrap();
+        let mut m = sample();
+        m.condition_number = f64::NAN;
+        m.friction = vec![JointFriction {
+            joint: "j1".into(),
+            viscous_nm_s_rad: Some(f64::INFINITY),
+            coulomb_nm: Some(1.0),
+            offset_nm: None,
+        }];
+        let e = m.write(&p).unwrap_err().to_string();
+        assert!(
+            e.contains("m.json")
+                && e.contains("not finite")
+                && e.contains("condition_number")
+                && e.contains("friction[0].viscous_nm_s_rad"),
+            "{e}"
+        );
+        assert_eq!(std::fs::read(&p).unwrap(), b"the previous model\n");
+        for eps in [-1.0, 0.0] {
+            let mut m = sample();
+            m.model_terms.coulomb_smoothing_rad_s = Some(eps);
+            // Written by hand (or by an older tool): refused when read.
+            std::fs::write(&p, serde_json::to_string(&m).unwrap()).unwrap();
+            let e = ModelFile::read(&p).unwrap_err().to_string();
+            assert!(
+                e.contains("m.json") && e.contains("coulomb_smoothing_rad_s"),
+                "{e}"
+            );
+        }
+        let mut m = sample();
+        m.modelled_joints = vec!["j1\nj2".into()];
+        std::fs::write(&p, serde_json::to_string(&m).unwrap()).unwrap();
+        let e = ModelFile::read(&p).unwrap_err().to_string();
+        assert!(e.contains("control character"), "{e}");
     }
 }

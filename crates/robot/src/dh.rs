@@ -419,6 +419,12 @@ pub(super) fn parse(text: &str, file: &Path) -> Result<Robot, RobotError> {
                 ),
             ));
         }
+        let rows = [
+            [ic[(0, 0)], ic[(0, 1)], ic[(0, 2)]],
+            [ic[(1, 0)], ic[(1, 1)], ic[(1, 2)]],
+            [ic[(2, 0)], ic[(2, 1)], ic[(2, 2)]],
+        ];
+        artifacts::plausible::rigid_body(j.mass, &rows).map_err(|m| fe("inertia", m))?;
         let opt = |v: Option<f64>, f: &str, positive: bool| -> Result<Option<f64>, RobotError> {
             match v {
                 None => Ok(None),

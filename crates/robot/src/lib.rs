@@ -726,7 +726,19 @@ impl Robot {
             field,
             message,
         };
+        artifacts::plausible::count(
+            self.joints.len(),
+            artifacts::plausible::MAX_JOINTS,
+            "joints in the chain, MAX_JOINTS",
+        )
+        .map_err(|m| fail("joints".into(), m))?;
         for j in &self.joints {
+            artifacts::plausible::name(&j.name).map_err(|m| {
+                fail(
+                    format!("joint {} name", j.name.chars().take(40).collect::<String>()),
+                    m,
+                )
+            })?;
             let offsets = std::iter::once(&j.origin_translation)
                 .chain(j.link_frame.as_ref().map(|(_, p)| p))
                 .flat_map(|p| p.iter());

@@ -332,6 +332,13 @@ pub(super) fn parse(
                 "not positive semi-definite".into(),
             ));
         }
+        let rows = [
+            [ic[(0, 0)], ic[(0, 1)], ic[(0, 2)]],
+            [ic[(1, 0)], ic[(1, 1)], ic[(1, 2)]],
+            [ic[(2, 0)], ic[(2, 1)], ic[(2, 2)]],
+        ];
+        artifacts::plausible::rigid_body(l.inertial.mass.value, &rows)
+            .map_err(|m| link_err(&l.name, "inertial.inertia", m))?;
     }
     // The tree: name maps, one parent per link, one root, every link reached.
     let n = model.links.len();
@@ -703,14 +710,9 @@ pub(super) fn parse(
                     qdd_max_rad_s2: some_pos(lim.acceleration),
                     effort_max_nm: some_pos(lim.effort),
                 };
-                if let (Some(lo), Some(hi)) = (limits.q_min_rad, limits.q_max_rad)
-                    && lo > hi
-                {
-                    return Err(joint_err(
-                        &j.name,
-                        "limit",
-                        format!("lower {lo} > upper {hi}"),
-                    ));
+                if let (Some(lo), Some(hi)) = (limits.q_min_rad, limits.q_max_rad) {
+                    artifacts::plausible::limits(lo, hi)
+                        .map_err(|m| joint_err(&j.name, "limit", m))?;
                 }
                 let friction = j
                     .dynamics

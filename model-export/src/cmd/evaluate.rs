@@ -11,8 +11,8 @@ use std::path::{Path, PathBuf};
 /// `evaluate` options.
 #[derive(Debug, Args)]
 pub struct EvaluateArgs {
-    /// Model (safetensors).
-    #[arg(long)]
+    /// The network (safetensors, or ONNX exported from PyTorch); also `--network`.
+    #[arg(long, visible_alias = "network")]
     pub model: PathBuf,
     /// CSV logs, each streamed whole from the zero state.
     #[arg(long, required = true, value_delimiter = ',')]
@@ -73,6 +73,15 @@ pub fn run(a: EvaluateArgs) -> Result<()> {
         .iter()
         .map(|p| Table::read(p))
         .collect::<Result<_>>()?;
+    for (p, t) in a.data.iter().zip(&tables) {
+        if t.len() < 2 {
+            bail!(
+                "{}: {} data rows: a run to evaluate needs at least two (an RMS over fewer says nothing)",
+                p.display(),
+                t.len()
+            );
+        }
+    }
     // The torque the figures are scored against: as logged, or low-passed.
     let scored_tables: Vec<Table> = match a.score_cutoff_hz {
         Some(fc) => tables

@@ -11,10 +11,11 @@ use std::path::{Path, PathBuf};
 /// `model-export export`.
 #[derive(Debug, clap::Args)]
 pub struct ExportArgs {
-    /// Model to export (safetensors written by `train` / `import`). Without it, a
+    /// The network to export (safetensors written by `train` / `import`, or ONNX
+    /// exported from PyTorch; also `--network`). Without it, a
     /// seeded PyTorch-style initialisation of the size `--dims` (for benchmarks and
     /// the committed default until a trained model replaces it).
-    #[arg(long)]
+    #[arg(long, visible_alias = "network")]
     pub model: Option<PathBuf>,
     /// Sizes `I,E,H,O` of the seeded network (without `--model`).
     #[arg(long, value_delimiter = ',', default_value = "9,64,64,3")]
@@ -389,6 +390,8 @@ fn do_no_harm(m: &LstmModel, a: &ExportArgs) -> Result<String> {
 /// Runs the subcommand: the Rust file and the accuracy JSON are written all or none,
 /// after the accuracy log was read and evaluated.
 pub fn run(a: ExportArgs) -> Result<()> {
+    artifacts::plausible::positive(f64::from(a.control_rate_hz))
+        .map_err(|m| anyhow::anyhow!("--control-rate-hz {m}"))?;
     let m = model(&a)?;
     let (net, placement, text) = render_export(&m, &a)?;
     let mut accuracy_json = None;

@@ -192,11 +192,46 @@ fn load_logs(
         .iter()
         .map(|p| {
             let raw = read_robot_log(p, layout, bag, &names)?;
+            angles_within_limits(&raw, robot)?;
             gains.push(raw.drive_gains_nm_per_a.clone());
             Ok(preprocess(&raw, pre)?)
         })
         .collect::<anyhow::Result<_>>()?;
     Ok((samples, gains))
+}
+
+/// How far beyond a joint's limits a logged angle may lie [rad] (one turn: encoder
+/// wrap-around and calibration offsets pass; a log of another robot, or a column of
+/// another unit, does not).
+const ANGLE_MARGIN_RAD: f64 = std::f64::consts::TAU;
+
+/// The plausibility layer on a log against its robot: every logged angle within
+/// [`ANGLE_MARGIN_RAD`] of its joint's limits; the error names the file, the line, the
+/// joint and the limits.
+fn angles_within_limits(raw: &logs::RawLog, robot: &Robot) -> anyhow::Result<()> {
+    for (j, (q, joint)) in raw.q_rad.iter().zip(&robot.joints).enumerate() {
+        let (Some(lo), Some(hi)) = (joint.limits.q_min_rad, joint.limits.q_max_rad) else {
+            continue;
+        };
+        if let Some(k) = q
+            .iter()
+            .position(|&v| v < lo - ANGLE_MARGIN_RAD || v > hi + ANGLE_MARGIN_RAD)
+        {
+            let line = raw
+                .lines
+                .get(k)
+                .map_or(String::new(), |l| format!(", line {l}"));
+            anyhow::bail!(
+                "{}{line}, joint {} ({}) angle: {} rad is more than one turn beyond the \
+                 robot's limits [{lo}, {hi}] rad (a log of another robot, or not in radians?)",
+                raw.path.display(),
+                j + 1,
+                joint.name,
+                q[k]
+            );
+        }
+    }
+    Ok(())
 }
 
 fn log_refs(logs: &[Samples]) -> Vec<LogRef> {

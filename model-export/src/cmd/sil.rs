@@ -86,7 +86,7 @@ pub fn run(a: &SilArgs) -> anyhow::Result<()> {
         }
     }
     if let Some(s) = a.seconds {
-        ensure!(s.is_finite() && s > 0.0, "--seconds must be > 0");
+        artifacts::plausible::duration_s(s).map_err(|m| anyhow::anyhow!("--seconds {m}"))?;
         setup.duration_s = s.min(setup.duration_s);
     }
     let model = identified_wrist_model(&source, model_path, &a.chain.selection()?)?;
