@@ -190,6 +190,8 @@ struct Peer {
     /// (after silence or an over-age frame) keeps it, so no delay or replay can
     /// be learned into it.
     clock_session: Option<u16>,
+    /// A frame was accepted since the last tick.
+    new_frame: bool,
 }
 
 impl Peer {
@@ -210,6 +212,7 @@ impl Peer {
         ticks_since_conflict: u16::MAX,
         clock_offset_us: 0,
         clock_session: None,
+        new_frame: false,
     };
 
     /// Take a frame whose fields passed the limits (see [`Compensator::receive`]).
@@ -228,6 +231,7 @@ impl Peer {
         self.timestamp_us = msg.timestamp_us;
         self.received = true;
         self.ticks_since_rx = 0;
+        self.new_frame = true;
         if live && !same_session {
             self.ticks_since_conflict = 0;
             FaultFlags::STATE_OUT_OF_ORDER
@@ -236,28 +240,33 @@ impl Peer {
         }
     }
 
-    /// Signed distance of the latest frame's timestamp from the bus time `now_us`,
-    /// microseconds: against the bus time itself (`Synchronised`), or against the
-    /// sender's clock offset (`FreeRunning`: learned at the first frame of each
-    /// sender session, then followed by at most `slew_us` per tick).
-    fn age_error_us(&mut self, now_us: u32, clock: BusClock, slew_us: u32) -> i32 {
+    /// True when the latest frame's timestamp is more than `max_age_us` from the
+    /// bus time `now_us`: against the bus time itself (`Synchronised`), or against
+    /// the sender's clock offset (`FreeRunning`: learned at the first frame of each
+    /// sender session, then followed by at most `slew_us` per new frame that is
+    /// within the bound, so neither silence nor an over-age frame moves it).
+    fn too_old(&mut self, now_us: u32, clock: BusClock, slew_us: u32, max_age_us: u32) -> bool {
         let skew_us = now_us.wrapping_sub(self.timestamp_us);
+        let new_frame = core::mem::replace(&mut self.new_frame, false);
         match clock {
-            BusClock::Synchronised => skew_us as i32,
+            BusClock::Synchronised => (skew_us as i32).unsigned_abs() > max_age_us,
             BusClock::FreeRunning { .. } => {
                 if self.clock_session != Some(self.session) {
                     self.clock_offset_us = skew_us;
                     self.clock_session = Some(self.session);
                 }
                 let e = skew_us.wrapping_sub(self.clock_offset_us) as i32;
-                // Follow the sender's clock within the rate tolerance.
-                let slew = slew_us.min(e.unsigned_abs());
-                self.clock_offset_us = if e >= 0 {
-                    self.clock_offset_us.wrapping_add(slew)
-                } else {
-                    self.clock_offset_us.wrapping_sub(slew)
-                };
-                e
+                let too_old = e.unsigned_abs() > max_age_us;
+                if new_frame && !too_old {
+                    // Follow the sender's clock within the rate tolerance.
+                    let slew = slew_us.min(e.unsigned_abs());
+                    self.clock_offset_us = if e >= 0 {
+                        self.clock_offset_us.wrapping_add(slew)
+                    } else {
+                        self.clock_offset_us.wrapping_sub(slew)
+                    };
+                }
+                too_old
             }
         }
     }
@@ -448,7 +457,10 @@ impl<const J: usize, M: TorquePredictor<J>, L: TorquePredictor<J>> Compensator<J
                 inputs_ok = false;
             }
             let too_old = match now_us {
-                Some(now) => p.received && p.age_error_us(now, cfg.bus_clock, self.clock_slew_us).unsigned_abs() > cfg.max_message_age_us,
+                Some(now) => {
+                    p.received
+                        && p.too_old(now, cfg.bus_clock, self.clock_slew_us, cfg.max_message_age_us)
+                }
                 // No bus time: no frame's age is known.
                 None => true,
             };
