@@ -314,9 +314,10 @@ impl Sim {
                 None => Some("a state no frame carried".to_string()),
                 Some(o) if !o.authentic => Some("an unauthenticated frame".to_string()),
                 Some(o) if usize::from(o.joint) != j => Some("another joint's frame".to_string()),
-                Some(o) if now - o.sent_us > bound => {
-                    Some(format!("a frame {} us old (bound {bound})", now - o.sent_us))
-                }
+                Some(o) if now - o.sent_us > bound => Some(format!(
+                    "a frame {} us old (bound {bound})",
+                    now - o.sent_us
+                )),
                 Some(_) => None,
             };
             if let Some(why) = why {
@@ -415,6 +416,27 @@ fn replay_across_a_reboot_is_never_used() {
 }
 
 #[test]
+fn old_frames_replayed_beside_a_live_sender_do_not_even_pause_the_sync_bus() {
+    let mut sim = settled(Mode::Sync);
+    let mut recorded = Vec::new();
+    for _ in 0..50 {
+        let f = sim.real_frames();
+        recorded.push(f[0]);
+        sim.step(&f);
+    }
+    sim.run_clean(10);
+    // Frames from 10 to 60 ticks ago, one per tick, before the real ones.
+    for (i, old) in recorded.iter().enumerate() {
+        let mut f = vec![*old];
+        f.extend(sim.real_frames());
+        let out = sim.step(&f);
+        assert_eq!(out.source, FeedforwardSource::Model, "{i}: {out:?}");
+        assert_eq!(out.faults, FaultFlags::STATE_REJECTED, "{i}: {out:?}");
+    }
+    sim.assert_clean("replay beside a live sender");
+}
+
+#[test]
 fn a_delay_growing_5_ms_per_tick_is_never_used() {
     for mode in MODES {
         let mut sim = settled(mode);
@@ -437,7 +459,10 @@ fn a_delay_growing_5_ms_per_tick_is_never_used() {
         }
         sim.assert_clean("growing delay");
         // Stale from the moment the delay passes the bound on.
-        assert!(stale as u64 >= ticks - 12, "{mode:?}: stale on {stale} ticks");
+        assert!(
+            stale as u64 >= ticks - 12,
+            "{mode:?}: stale on {stale} ticks"
+        );
         // The delay removed: the model runs again.
         let out = sim.run_clean(30);
         assert_eq!(out.source, FeedforwardSource::Model, "{mode:?}: {out:?}");
@@ -614,15 +639,30 @@ fn a_silent_master_stops_the_feedforward_and_old_syncs_do_not_restart_it() {
 #[test]
 fn bus_load_and_latency_at_the_profile_rate() {
     let rate_hz = firmware::model::default::CONTROL_RATE_HZ as f32;
+    let mut lines = String::new();
     for (joints, hz) in [(6u32, rate_hz), (6, 1000.0)] {
         let b = BusBudget::of(joints, hz, BitRates::MOTEUS);
-        println!(
-            "CAN-FD 1/5 Mbit/s, {joints} joints + SYNC at {hz} Hz: load {:.1} %, worst-case latency {:.1} us (tick {:.0} us)",
+        lines += &format!(
+            "CAN-FD 1/5 Mbit/s, {joints} joints + SYNC at {hz} Hz: load {:.1} %, worst-case latency {:.1} us (tick {:.0} us)\n",
             100.0 * b.load,
             b.worst_latency_us,
             b.tick_period_us
         );
     }
+    print!("{lines}");
+    // The board README holds these lines as printed here.
+    let readme = std::fs::read_to_string(
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../board/README.md"),
+    )
+    .unwrap();
+    let want = format!("<!-- canfd-budget -->\n{lines}<!-- /canfd-budget -->");
+    assert!(
+        readme.contains(&want),
+        "board/README.md should hold:\n{want}"
+    );
     let b = BusBudget::of(6, rate_hz, BitRates::MOTEUS);
-    assert!(b.load < 0.5 && b.worst_latency_us < b.tick_period_us, "{b:?}");
+    assert!(
+        b.load < 0.5 && b.worst_latency_us < b.tick_period_us,
+        "{b:?}"
+    );
 }

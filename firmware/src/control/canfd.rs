@@ -40,8 +40,8 @@
 //! (feedforward zero) until the next SYNC, which it then takes whatever its session.
 
 use aes::Aes128;
-use cmac::digest::{KeyInit, Mac};
 use cmac::Cmac;
+use cmac::digest::{KeyInit, Mac};
 
 use super::compensator::{Compensator, CompensatorOutput, TorquePredictor};
 use super::faults::FaultFlags;
@@ -446,7 +446,7 @@ impl BusNode {
             };
         }
         match StateFrame::decode(&self.auth, frame) {
-            Ok(f) => compensator.receive(&f.message),
+            Ok(f) => compensator.receive_at(&f.message, self.now_us(local_us)),
             Err(FrameError::UnknownId) => FaultFlags::NONE,
             Err(_) => compensator.reject_frame(),
         }
@@ -677,6 +677,9 @@ mod tests {
         let b = BusBudget::of(6, 100.0, BitRates::MOTEUS);
         let per_tick_us = 6.0 * (34.0 + 103.8) + 34.0 + 38.8;
         assert!((b.load - per_tick_us * 100.0 / 1e6).abs() < 1e-5, "{b:?}");
-        assert!((b.worst_latency_us - (137.8 + per_tick_us)).abs() < 1e-2, "{b:?}");
+        assert!(
+            (b.worst_latency_us - (137.8 + per_tick_us)).abs() < 1e-2,
+            "{b:?}"
+        );
     }
 }

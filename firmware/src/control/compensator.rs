@@ -388,12 +388,30 @@ impl<const J: usize, M: TorquePredictor<J>, L: TorquePredictor<J>> Compensator<J
     /// `watchdog_ticks` ticks. A stream that is not live accepts the next valid
     /// frame whatever its session and sequence number.
     pub fn receive(&mut self, msg: &JointStateMessage) -> FaultFlags {
+        self.receive_at(msg, None)
+    }
+
+    /// [`Compensator::receive`] at the local bus time `now_us` (`Synchronised` bus
+    /// clock): a frame whose timestamp is already more than `max_message_age_us`
+    /// from it is dropped (`STATE_REJECTED`) before it can restart or conflict
+    /// with its sender's live stream, so a replayed old frame cannot even pause the
+    /// feedforward. With a free-running clock (or no bus time) the same as `receive`.
+    pub fn receive_at(&mut self, msg: &JointStateMessage, now_us: Option<u32>) -> FaultFlags {
         let j = msg.joint as usize;
-        let watchdog = self.config.watchdog_ticks;
-        let limits = self.config.state_limits;
+        let cfg = self.config;
+        let over_age = match (cfg.bus_clock, now_us) {
+            (BusClock::Synchronised, Some(now)) => {
+                (now.wrapping_sub(msg.timestamp_us) as i32).unsigned_abs() > cfg.max_message_age_us
+            }
+            _ => false,
+        };
         let f = match self.peers.get_mut(j) {
-            Some(p) if j != self.config.own_joint && limits.accepts(&msg.state) => {
-                p.accept(msg, watchdog)
+            Some(p) if j != cfg.own_joint && cfg.state_limits.accepts(&msg.state) => {
+                if over_age {
+                    FaultFlags::STATE_REJECTED
+                } else {
+                    p.accept(msg, cfg.watchdog_ticks)
+                }
             }
             // A bad field, this joint's own index or one beyond the modelled joints.
             _ => FaultFlags::STATE_REJECTED,
@@ -459,7 +477,12 @@ impl<const J: usize, M: TorquePredictor<J>, L: TorquePredictor<J>> Compensator<J
             let too_old = match now_us {
                 Some(now) => {
                     p.received
-                        && p.too_old(now, cfg.bus_clock, self.clock_slew_us, cfg.max_message_age_us)
+                        && p.too_old(
+                            now,
+                            cfg.bus_clock,
+                            self.clock_slew_us,
+                            cfg.max_message_age_us,
+                        )
                 }
                 // No bus time: no frame's age is known.
                 None => true,

@@ -9,8 +9,9 @@ pub struct FaultFlags(u32);
 impl FaultFlags {
     /// No fault.
     pub const NONE: Self = Self(0);
-    /// A joint-state message was rejected: a non-finite or out-of-range field, or a
-    /// joint index outside the modelled joints.
+    /// A joint-state message was rejected: a non-finite or out-of-range field, a
+    /// joint index outside the modelled joints, or (synchronised bus time) a
+    /// timestamp already over age when it arrived.
     pub const STATE_REJECTED: Self = Self(1 << 0);
     /// Watchdog: another modelled joint's state is older than the timeout; the
     /// feedforward falls back to zero.

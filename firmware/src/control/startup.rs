@@ -101,7 +101,9 @@ impl JointConfigBlock {
         if crc16(&b[..Self::CRC_AT]) != crc {
             return Err(JointConfigFault::BadCrc);
         }
-        let reserved = b[6..Self::KEY_AT].iter().chain(&b[Self::KEY_AT + 16..Self::CRC_AT]);
+        let reserved = b[6..Self::KEY_AT]
+            .iter()
+            .chain(&b[Self::KEY_AT + 16..Self::CRC_AT]);
         if reserved.into_iter().any(|&x| x != 0) {
             return Err(JointConfigFault::ReservedNotZero);
         }
@@ -330,7 +332,13 @@ mod tests {
 
     #[test]
     fn a_refusal_runs_no_feedforward_and_drives_only_with_a_shared_profile() {
-        let plan = plan_startup(&[0xFF; JointConfigBlock::LEN], &WRIST, &PROFILES, 20_000.0, 100);
+        let plan = plan_startup(
+            &[0xFF; JointConfigBlock::LEN],
+            &WRIST,
+            &PROFILES,
+            20_000.0,
+            100,
+        );
         assert_eq!(plan.joint, Err(JointConfigFault::Erased));
         assert_eq!(plan.compensator, None);
         assert_eq!(plan.adaptation, AdaptationConfig::OFF);
