@@ -497,7 +497,7 @@ pub const fn frame_bits(payload_len: u32) -> (u32, u32) {
     let dynamic = 1 + 4 + 8 * payload_len;
     let crc: u32 = if payload_len <= 16 { 17 } else { 21 };
     let fixed_stuff = (4 + crc).div_ceil(4);
-    let data = dynamic + (dynamic + 4 - 1) / 4 + 4 + crc + fixed_stuff;
+    let data = dynamic + dynamic.div_ceil(4) + 4 + crc + fixed_stuff;
     (arbitration + tail, data)
 }
 
