@@ -11,7 +11,11 @@ use firmware::model::default as compiled;
 const PWM_HZ: f32 = 20_000.0;
 
 fn block(joint_number: u8) -> [u8; JointConfigBlock::LEN] {
-    JointConfigBlock { joint_number }.encode()
+    JointConfigBlock {
+        joint_number,
+        bus_key: *b"startup-test-key",
+    }
+    .encode()
 }
 
 #[test]

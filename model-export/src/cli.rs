@@ -66,6 +66,9 @@ pub enum Command {
     /// joints, control rate, dynamics, schema version, content hash and a self-check
     /// digest); optionally report accuracy per precision on a CSV log.
     Export(crate::cmd::export::ExportArgs),
+    /// Write a drive's configuration block (joint number, the robot's state-bus key)
+    /// as a `.bin` and print the `probe-rs download` line that flashes it.
+    Provision(crate::cmd::provision::ProvisionArgs),
 }
 
 /// The files a command reads and the files it writes (for
@@ -150,6 +153,7 @@ fn files(command: &Command) -> (Vec<&Path>, Vec<&Path>) {
                 .map(PathBuf::as_path)
                 .collect(),
         ),
+        Command::Provision(a) => (vec![&a.key_file], vec![&a.out]),
         _ => (Vec::new(), Vec::new()),
     }
 }
@@ -214,6 +218,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Simulate(args) => crate::cmd::simulate::run_simulate(&args),
         Command::PlantReport(args) => crate::cmd::simulate::run_plant_report(&args),
         Command::Export(a) => crate::cmd::export::run(a),
+        Command::Provision(a) => crate::cmd::provision::run(&a),
         Command::Demo(a) => crate::cmd::demo::demo(&a, &mut crate::cmd::demo::WithoutCargo),
     }
 }

@@ -49,6 +49,7 @@ pub fn visit_all<V: Visitor>(v: &mut V) {
     v.visit::<LstmLinearF32>();
     v.visit::<LstmLinearInt16>();
     v.visit::<LstmLinearInt8>();
+    v.visit::<StateFrameMac>();
 }
 
 /// Number of registered workloads.
@@ -351,6 +352,69 @@ impl Workload for Dynamics6F32 {
         for q in self.q.iter_mut() {
             *q += PHASE_STEP;
         }
+    }
+
+    fn output(&self) -> f32 {
+        self.out
+    }
+}
+
+/// One state frame's authentication on the CAN-FD bus
+/// (`firmware::control::canfd::StateFrame::decode`: AES-128-CMAC over the identifier
+/// block and 40 payload bytes, three AES blocks, the truncated tag compared) and its
+/// decoding, of golden frames that change every tick. A drive verifies one per
+/// other joint and one SYNC, and seals its own (the same CMAC), per compensator tick.
+pub struct StateFrameMac {
+    auth: firmware::control::canfd::FrameAuth,
+    frames: [firmware::control::canfd::CanFdFrame; MODEL_INPUT_STEPS],
+    t: usize,
+    out: f32,
+}
+
+impl Workload for StateFrameMac {
+    const NAME: &'static str = "state_frame_mac";
+
+    fn new() -> Self {
+        use firmware::control::canfd::{CanFdFrame, FrameAuth, StateFrame};
+        use firmware::control::{FaultFlags, JointStateMessage};
+        let auth = FrameAuth::new(b"bench-robot-key!");
+        let frames = core::array::from_fn(|t| {
+            StateFrame {
+                message: JointStateMessage {
+                    joint: 2,
+                    session: 0x5EED,
+                    sequence: t as u16,
+                    timestamp_us: 1000 * t as u32,
+                    state: JointState::from_array(crate::golden::network::inputs::<6>(t)),
+                },
+                faults: FaultFlags::NONE,
+                feedforward_nm: 1.0,
+            }
+            .encode(&auth)
+            .unwrap_or(CanFdFrame {
+                id: 0,
+                len: 0,
+                data: [0; 64],
+            })
+        });
+        StateFrameMac {
+            auth,
+            frames,
+            t: 0,
+            out: 0.0,
+        }
+    }
+
+    #[inline(never)]
+    #[cfg_attr(target_os = "none", unsafe(link_section = ".ccmram_text"))]
+    fn tick(&mut self) {
+        use firmware::control::canfd::StateFrame;
+        let frame = &self.frames[self.t % MODEL_INPUT_STEPS];
+        self.out = match StateFrame::decode(&self.auth, frame) {
+            Ok(d) => d.message.state.q_ref_rad + f32::from(d.message.sequence),
+            Err(_) => f32::NAN,
+        };
+        self.t += 1;
     }
 
     fn output(&self) -> f32 {

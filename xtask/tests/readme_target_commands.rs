@@ -103,25 +103,6 @@ fn xtask_demo_runs_with_the_firmware_stages() {
     assert!(out.join("firmware/budget.md").is_file());
 }
 
-/// The board README's configuration block line for joint 5 writes the bytes the
-/// firmware's start-up reads as joint 5 (the probe-rs line that flashes them needs a
-/// probe: `board_commands_run_on_a_probe`).
-#[test]
-fn the_joint_5_configuration_bytes_are_the_firmwares() {
-    let c = readme_commands("board/README.md", |c| c.starts_with("printf "));
-    assert_eq!(c.len(), 1, "{c:#?}");
-    let dir = tempfile::tempdir().unwrap();
-    run_ok(&c[0], &c[0].command, dir.path(), &[]);
-    let bytes = std::fs::read(dir.path().join("joint5.bin")).unwrap();
-    let want = firmware::control::JointConfigBlock { joint_number: 5 }.encode();
-    assert_eq!(bytes, want.to_vec());
-    let block: [u8; 16] = bytes.try_into().unwrap();
-    assert_eq!(
-        firmware::control::JointConfigBlock::decode(&block).map(|b| b.joint_number),
-        Ok(5)
-    );
-}
-
 /// Whether a debug probe is attached (`probe-rs list` names one); prints the skip line
 /// otherwise.
 fn probe_or_skip() -> bool {
@@ -150,10 +131,16 @@ fn board_commands_run_on_a_probe() {
         return;
     }
     let dir = tempfile::tempdir().unwrap();
+    // The provisioning lines (a fresh key, the block for joint 5, the probe-rs write),
+    // `$ME` the model-export binary of this workspace.
+    let me = format!(
+        "cargo run -q --profile host --manifest-path {} -p model-export --",
+        workspace_root().join("Cargo.toml").display()
+    );
     for c in readme_commands("board/README.md", |c| {
-        c.starts_with("printf ") || c.starts_with("probe-rs ")
+        c.starts_with("od ") || c.starts_with("$ME provision ") || c.starts_with("probe-rs ")
     }) {
-        run_ok(&c, &c.command, dir.path(), &[]);
+        run_ok(&c, &c.command.replace("$ME", &me), dir.path(), &[]);
     }
     for command in ["cargo board-bench-run", "cargo board-run"] {
         let c = readme_command("README.md", command);

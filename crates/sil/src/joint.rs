@@ -89,10 +89,17 @@ impl JointPlantConfig {
     }
 }
 
+/// The state-bus key the simulated robot's drives are provisioned with.
+pub const SIL_BUS_KEY: [u8; 16] = *b"sil-robot-bus-k1";
+
 /// The configuration block of robot joint `joint_number` (counted from 1), as it is
-/// written into a board's configuration page.
+/// written into a board's configuration page (with [`SIL_BUS_KEY`]).
 pub fn config_block(joint_number: u8) -> [u8; JointConfigBlock::LEN] {
-    JointConfigBlock { joint_number }.encode()
+    JointConfigBlock {
+        joint_number,
+        bus_key: SIL_BUS_KEY,
+    }
+    .encode()
 }
 
 /// The configuration block naming the 0-based robot joint `joint_index` (naming joint 0,

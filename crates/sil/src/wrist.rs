@@ -732,7 +732,11 @@ mod tests {
         // Three boards, one image: they differ only in their configuration blocks.
         assert_eq!(
             s.config_blocks,
-            [4u8, 5, 6].map(|n| JointConfigBlock { joint_number: n }.encode())
+            [4u8, 5, 6].map(|n| JointConfigBlock {
+                joint_number: n,
+                bus_key: crate::joint::SIL_BUS_KEY
+            }
+            .encode())
         );
         let r = run_image(&s);
         let bus =

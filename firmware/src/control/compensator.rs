@@ -174,6 +174,114 @@ pub struct CompensatorOutput {
     pub envelope_weight: f32,
 }
 
+/// What the compensator knows of one other joint's sender: its latest accepted
+/// state and the freshness of its stream.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Peer {
+    /// The latest accepted state.
+    state: JointState,
+    /// Session of the stream.
+    session: u16,
+    /// Sequence number of the latest accepted frame.
+    sequence: u16,
+    /// Sender's timestamp of the latest accepted frame, microseconds.
+    timestamp_us: u32,
+    /// True once a frame was accepted.
+    received: bool,
+    /// Compensator ticks since the latest accepted frame (saturating).
+    ticks_since_rx: u16,
+    /// Compensator ticks since the latest sequence or session conflict (saturating).
+    ticks_since_conflict: u16,
+    /// Free-running clocks: local bus time minus the sender's clock, microseconds.
+    clock_offset_us: u32,
+    /// Free-running clocks: the session `clock_offset_us` was learned for, if any.
+    /// The offset is learned once per sender session and then only followed
+    /// within the rate tolerance: a stream that restarts within the same session
+    /// (after silence or an over-age frame) keeps it, so no delay or replay can
+    /// be learned into it.
+    clock_session: Option<u16>,
+    /// A frame was accepted since the last tick.
+    new_frame: bool,
+}
+
+impl Peer {
+    const NEW: Self = Self {
+        state: JointState {
+            q_ref_rad: 0.0,
+            qd_ref_rad_s: 0.0,
+            qdd_ref_rad_s2: 0.0,
+            q_meas_rad: 0.0,
+            qd_meas_rad_s: 0.0,
+            tau_meas_nm: 0.0,
+        },
+        session: 0,
+        sequence: 0,
+        timestamp_us: 0,
+        received: false,
+        ticks_since_rx: u16::MAX,
+        ticks_since_conflict: u16::MAX,
+        clock_offset_us: 0,
+        clock_session: None,
+        new_frame: false,
+    };
+
+    /// Take a frame whose fields passed the limits (see [`Compensator::receive`]).
+    fn accept(&mut self, msg: &JointStateMessage, watchdog_ticks: u16) -> FaultFlags {
+        let live = self.received && self.ticks_since_rx <= watchdog_ticks;
+        let same_session = msg.session == self.session;
+        let step = msg.sequence.wrapping_sub(self.sequence);
+        let in_window = (1..=SEQUENCE_WINDOW).contains(&step);
+        if live && same_session && !in_window {
+            self.ticks_since_conflict = 0;
+            return FaultFlags::STATE_OUT_OF_ORDER;
+        }
+        self.state = msg.state;
+        self.session = msg.session;
+        self.sequence = msg.sequence;
+        self.timestamp_us = msg.timestamp_us;
+        self.received = true;
+        self.ticks_since_rx = 0;
+        self.new_frame = true;
+        if live && !same_session {
+            self.ticks_since_conflict = 0;
+            FaultFlags::STATE_OUT_OF_ORDER
+        } else {
+            FaultFlags::NONE
+        }
+    }
+
+    /// True when the latest frame's timestamp is more than `max_age_us` from the
+    /// bus time `now_us`: against the bus time itself (`Synchronised`), or against
+    /// the sender's clock offset (`FreeRunning`: learned at the first frame of each
+    /// sender session, then followed by at most `slew_us` per new frame that is
+    /// within the bound, so neither silence nor an over-age frame moves it).
+    fn too_old(&mut self, now_us: u32, clock: BusClock, slew_us: u32, max_age_us: u32) -> bool {
+        let skew_us = now_us.wrapping_sub(self.timestamp_us);
+        let new_frame = core::mem::replace(&mut self.new_frame, false);
+        match clock {
+            BusClock::Synchronised => (skew_us as i32).unsigned_abs() > max_age_us,
+            BusClock::FreeRunning { .. } => {
+                if self.clock_session != Some(self.session) {
+                    self.clock_offset_us = skew_us;
+                    self.clock_session = Some(self.session);
+                }
+                let e = skew_us.wrapping_sub(self.clock_offset_us) as i32;
+                let too_old = e.unsigned_abs() > max_age_us;
+                if new_frame && !too_old {
+                    // Follow the sender's clock within the rate tolerance.
+                    let slew = slew_us.min(e.unsigned_abs());
+                    self.clock_offset_us = if e >= 0 {
+                        self.clock_offset_us.wrapping_add(slew)
+                    } else {
+                        self.clock_offset_us.wrapping_sub(slew)
+                    };
+                }
+                too_old
+            }
+        }
+    }
+}
+
 /// The per-joint feedforward compensator for `J` modelled joints with a model stage
 /// `M` and an LSTM stage `L` (use [`NoPredictor`] for model only).
 pub struct Compensator<const J: usize, M, L> {
@@ -181,16 +289,11 @@ pub struct Compensator<const J: usize, M, L> {
     model: M,
     lstm: L,
     dt_s: f32,
-    states: [JointState; J],
-    session: [u16; J],
-    last_sequence: [u16; J],
-    last_timestamp_us: [u32; J],
-    received: [bool; J],
-    ticks_since_rx: [u16; J],
-    ticks_since_conflict: [u16; J],
-    clock_offset_us: [u32; J],
-    learn_clock: [bool; J],
+    /// What is known of each modelled joint's sender (this joint's own slot holds
+    /// only its state, written by `tick`).
+    peers: [Peer; J],
     clock_slew_us: u32,
+    unauthenticated_frames: u32,
     rx_faults: FaultFlags,
     latched: FaultFlags,
     torque_nm: f32,
@@ -211,15 +314,8 @@ impl<const J: usize, M: TorquePredictor<J>, L: TorquePredictor<J>> Compensator<J
             model,
             lstm,
             dt_s: 1.0 / config.rate_hz,
-            states: [JointState::default(); J],
-            session: [0; J],
-            last_sequence: [0; J],
-            last_timestamp_us: [0; J],
-            received: [false; J],
-            ticks_since_rx: [u16::MAX; J],
-            ticks_since_conflict: [u16::MAX; J],
-            clock_offset_us: [0; J],
-            learn_clock: [true; J],
+            peers: [Peer::NEW; J],
+            unauthenticated_frames: 0,
             clock_slew_us: match config.bus_clock {
                 BusClock::Synchronised => 0,
                 // Saturating float-to-int cast: ppm of one tick period, microseconds.
@@ -302,60 +398,49 @@ impl<const J: usize, M: TorquePredictor<J>, L: TorquePredictor<J>> Compensator<J
     /// `watchdog_ticks` ticks. A stream that is not live accepts the next valid
     /// frame whatever its session and sequence number.
     pub fn receive(&mut self, msg: &JointStateMessage) -> FaultFlags {
+        self.receive_at(msg, None)
+    }
+
+    /// [`Compensator::receive`] at the local bus time `now_us` (`Synchronised` bus
+    /// clock): a frame whose timestamp is already more than `max_message_age_us`
+    /// from it is dropped (`STATE_REJECTED`) before it can restart or conflict
+    /// with its sender's live stream, so a replayed old frame cannot even pause the
+    /// feedforward. With a free-running clock (or no bus time) the same as `receive`.
+    pub fn receive_at(&mut self, msg: &JointStateMessage, now_us: Option<u32>) -> FaultFlags {
         let j = msg.joint as usize;
-        let f = if j == self.config.own_joint || !self.config.state_limits.accepts(&msg.state) {
-            FaultFlags::STATE_REJECTED
-        } else if let (
-            Some(s),
-            Some(session),
-            Some(seq),
-            Some(ts),
-            Some(rx),
-            Some(age),
-            Some(conflict),
-            Some(learn),
-        ) = (
-            self.states.get_mut(j),
-            self.session.get_mut(j),
-            self.last_sequence.get_mut(j),
-            self.last_timestamp_us.get_mut(j),
-            self.received.get_mut(j),
-            self.ticks_since_rx.get_mut(j),
-            self.ticks_since_conflict.get_mut(j),
-            self.learn_clock.get_mut(j),
-        ) {
-            let live = *rx && *age <= self.config.watchdog_ticks;
-            let same_session = msg.session == *session;
-            let step = msg.sequence.wrapping_sub(*seq);
-            let in_window = (1..=SEQUENCE_WINDOW).contains(&step);
-            if live && same_session && !in_window {
-                *conflict = 0;
-                FaultFlags::STATE_OUT_OF_ORDER
-            } else {
-                *s = msg.state;
-                *session = msg.session;
-                *seq = msg.sequence;
-                *ts = msg.timestamp_us;
-                *rx = true;
-                *age = 0;
-                if live && same_session {
-                    FaultFlags::NONE
+        let cfg = self.config;
+        let over_age = match (cfg.bus_clock, now_us) {
+            (BusClock::Synchronised, Some(now)) => {
+                (now.wrapping_sub(msg.timestamp_us) as i32).unsigned_abs() > cfg.max_message_age_us
+            }
+            _ => false,
+        };
+        let f = match self.peers.get_mut(j) {
+            Some(p) if j != cfg.own_joint && cfg.state_limits.accepts(&msg.state) => {
+                if over_age {
+                    FaultFlags::STATE_REJECTED
                 } else {
-                    // A (re)synchronised stream: its clock offset is learned anew.
-                    *learn = true;
-                    if live {
-                        *conflict = 0;
-                        FaultFlags::STATE_OUT_OF_ORDER
-                    } else {
-                        FaultFlags::NONE
-                    }
+                    p.accept(msg, cfg.watchdog_ticks)
                 }
             }
-        } else {
-            FaultFlags::STATE_REJECTED // joint index beyond the modelled joints
+            // A bad field, this joint's own index or one beyond the modelled joints.
+            _ => FaultFlags::STATE_REJECTED,
         };
         self.rx_faults |= f;
         f
+    }
+
+    /// Count a frame that failed its authentication (or was malformed) on the
+    /// bus: it is never used, and the next tick reports `FRAME_UNAUTHENTICATED`.
+    pub fn reject_frame(&mut self) -> FaultFlags {
+        self.unauthenticated_frames = self.unauthenticated_frames.saturating_add(1);
+        self.rx_faults |= FaultFlags::FRAME_UNAUTHENTICATED;
+        FaultFlags::FRAME_UNAUTHENTICATED
+    }
+
+    /// Frames that failed authentication since start (saturating).
+    pub fn unauthenticated_frames(&self) -> u32 {
+        self.unauthenticated_frames
     }
 
     /// One compensator tick: this joint's own state and the local bus time ->
@@ -363,6 +448,19 @@ impl<const J: usize, M: TorquePredictor<J>, L: TorquePredictor<J>> Compensator<J
     /// SRAM (`.ccmram_text`).
     #[cfg_attr(target_os = "none", unsafe(link_section = ".ccmram_text"))]
     pub fn tick(&mut self, own: &JointState, now_us: u32) -> CompensatorOutput {
+        self.tick_at(own, Some(now_us))
+    }
+
+    /// One compensator tick while this node follows no bus time (no SYNC heard within
+    /// its bound): no frame's age is known, so every other joint is stale and the
+    /// feedforward falls back to zero (`STATE_STALE`).
+    #[cfg_attr(target_os = "none", unsafe(link_section = ".ccmram_text"))]
+    pub fn tick_without_bus_time(&mut self, own: &JointState) -> CompensatorOutput {
+        self.tick_at(own, None)
+    }
+
+    #[inline(always)]
+    fn tick_at(&mut self, own: &JointState, now_us: Option<u32>) -> CompensatorOutput {
         let cfg = self.config;
         let own_j = cfg.own_joint;
         let mut faults = self.rx_faults;
@@ -374,11 +472,11 @@ impl<const J: usize, M: TorquePredictor<J>, L: TorquePredictor<J>> Compensator<J
             faults |= FaultFlags::OWN_STATE_INVALID;
             inputs_ok = false;
         }
-        for j in 0..J {
-            let age = self.ticks_since_rx[j];
-            self.ticks_since_rx[j] = age.saturating_add(1);
-            let since_conflict = self.ticks_since_conflict[j];
-            self.ticks_since_conflict[j] = since_conflict.saturating_add(1);
+        for (j, p) in self.peers.iter_mut().enumerate() {
+            let age = p.ticks_since_rx;
+            p.ticks_since_rx = age.saturating_add(1);
+            let since_conflict = p.ticks_since_conflict;
+            p.ticks_since_conflict = since_conflict.saturating_add(1);
             if j == own_j {
                 continue;
             }
@@ -386,31 +484,28 @@ impl<const J: usize, M: TorquePredictor<J>, L: TorquePredictor<J>> Compensator<J
                 faults |= FaultFlags::STATE_OUT_OF_ORDER;
                 inputs_ok = false;
             }
-            let skew_us = now_us.wrapping_sub(self.last_timestamp_us[j]);
-            let error_us = match cfg.bus_clock {
-                BusClock::Synchronised => skew_us as i32,
-                BusClock::FreeRunning { .. } => {
-                    if self.learn_clock[j] && self.received[j] {
-                        self.clock_offset_us[j] = skew_us;
-                        self.learn_clock[j] = false;
-                    }
-                    let e = skew_us.wrapping_sub(self.clock_offset_us[j]) as i32;
-                    // Follow the sender's clock within the rate tolerance.
-                    let slew = self.clock_slew_us.min(e.unsigned_abs());
-                    self.clock_offset_us[j] = if e >= 0 {
-                        self.clock_offset_us[j].wrapping_add(slew)
-                    } else {
-                        self.clock_offset_us[j].wrapping_sub(slew)
-                    };
-                    e
+            let too_old = match now_us {
+                Some(now) => {
+                    p.received
+                        && p.too_old(
+                            now,
+                            cfg.bus_clock,
+                            self.clock_slew_us,
+                            cfg.max_message_age_us,
+                        )
                 }
+                // No bus time: no frame's age is known.
+                None => true,
             };
-            let too_old = self.received[j] && error_us.unsigned_abs() > cfg.max_message_age_us;
             if too_old {
                 // The stream restarts: the next valid frame resynchronises it.
-                self.ticks_since_rx[j] = u16::MAX;
+                p.ticks_since_rx = u16::MAX;
             }
-            if !self.received[j] || age > cfg.watchdog_ticks || too_old {
+            let silent = !p.received || age > cfg.watchdog_ticks;
+            if silent {
+                faults |= FaultFlags::SENDER_SILENT;
+            }
+            if silent || too_old {
                 faults |= FaultFlags::STATE_STALE;
                 inputs_ok = false;
             }
@@ -427,11 +522,11 @@ impl<const J: usize, M: TorquePredictor<J>, L: TorquePredictor<J>> Compensator<J
                 self.lstm_blend_ticks = 0;
                 self.ff_blend_ticks = 0;
             }
-            if let Some(slot) = self.states.get_mut(own_j) {
-                *slot = *own;
+            if let Some(slot) = self.peers.get_mut(own_j) {
+                slot.state = *own;
             }
             let mut input = PredictorInput {
-                joints: self.states,
+                joints: self.peers.map(|p| p.state),
                 own_joint: own_j,
                 model_nm: [0.0; J],
             };

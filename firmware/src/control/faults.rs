@@ -9,8 +9,9 @@ pub struct FaultFlags(u32);
 impl FaultFlags {
     /// No fault.
     pub const NONE: Self = Self(0);
-    /// A joint-state message was rejected: a non-finite or out-of-range field, or a
-    /// joint index outside the modelled joints.
+    /// A joint-state message was rejected: a non-finite or out-of-range field, a
+    /// joint index outside the modelled joints, or (synchronised bus time) a
+    /// timestamp already over age when it arrived.
     pub const STATE_REJECTED: Self = Self(1 << 0);
     /// Watchdog: another modelled joint's state is older than the timeout; the
     /// feedforward falls back to zero.
@@ -53,10 +54,17 @@ impl FaultFlags {
     /// The joint's state is outside its training envelope (`crate::envelope`): the
     /// learned share of the feedforward is faded by a weight below 1.
     pub const ENVELOPE_OUTSIDE: Self = Self(1 << 16);
+    /// A state-bus frame failed its authentication (MAC, or a malformed frame): it
+    /// was counted and dropped, never used.
+    pub const FRAME_UNAUTHENTICATED: Self = Self(1 << 18);
+    /// Another modelled joint's real sender was not heard (no accepted,
+    /// authenticated frame) within the watchdog bound; its state is not used and
+    /// the feedforward falls back to zero (with `STATE_STALE`).
+    pub const SENDER_SILENT: Self = Self(1 << 19);
 
     /// Every flag with its name, in bit order (new flags take the next bit and an
     /// entry here).
-    pub const NAMED: [(Self, &'static str); 17] = [
+    pub const NAMED: [(Self, &'static str); 19] = [
         (Self::STATE_REJECTED, "STATE_REJECTED"),
         (Self::STATE_STALE, "STATE_STALE"),
         (Self::STATE_OUT_OF_ORDER, "STATE_OUT_OF_ORDER"),
@@ -74,6 +82,8 @@ impl FaultFlags {
         (Self::VOLTAGE_LIMITED, "VOLTAGE_LIMITED"),
         (Self::REFERENCE_INVALID, "REFERENCE_INVALID"),
         (Self::ENVELOPE_OUTSIDE, "ENVELOPE_OUTSIDE"),
+        (Self::FRAME_UNAUTHENTICATED, "FRAME_UNAUTHENTICATED"),
+        (Self::SENDER_SILENT, "SENDER_SILENT"),
     ];
 
     /// The raw bits.
@@ -160,12 +170,18 @@ mod tests {
     #[test]
     fn every_bit_has_one_name() {
         let mut all = 0u32;
-        for (i, (flag, _)) in FaultFlags::NAMED.iter().enumerate() {
-            assert_eq!(flag.bits(), 1 << i);
+        let mut last = 0u32;
+        for (flag, _) in FaultFlags::NAMED.iter() {
+            // One bit each, in bit order, none named twice.
+            assert_eq!(flag.bits().count_ones(), 1);
+            assert!(flag.bits() > last);
+            last = flag.bits();
             all |= flag.bits();
         }
-        // The named flags are the low bits, one each, none skipped.
-        assert_eq!(all, (1u32 << FaultFlags::NAMED.len()) - 1);
+        // The first sixteen are the control loop's, none skipped; the state bus's
+        // are bits 18 and 19 (16 and 17 belong to the do-no-harm layer).
+        assert_eq!(all & 0xFFFF, 0xFFFF);
+        assert_eq!(all & (0b11 << 18), 0b11 << 18);
         let mut f = FaultFlags::NONE;
         f.insert(FaultFlags::STATE_STALE | FaultFlags::OVERCURRENT);
         assert!(f.contains(FaultFlags::STATE_STALE) && !f.contains(FaultFlags::LSTM_INVALID));

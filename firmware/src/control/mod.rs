@@ -15,6 +15,7 @@
 //! No heap, no panics, no unbounded loops: every call does a fixed amount of work
 //! (loops run over the const-generic number of joints or over fixed arrays).
 
+pub mod canfd;
 pub mod cascade;
 pub mod compensator;
 pub mod drive;

@@ -3,15 +3,18 @@
 //!
 //! The block lives in its own flash page (the board's `memory.x` reserves the last
 //! 2 KiB, `BOARD_CONFIG`, in the last 4 KiB page of the single-bank flash, which the
-//! firmware image never covers, so flashing a new image keeps it). Layout ([`JointConfigBlock::LEN`] = 16 bytes, little-endian):
+//! firmware image never covers, so flashing a new image keeps it). Layout ([`JointConfigBlock::LEN`] = 32 bytes, little-endian;
+//! `model-export provision` writes it):
 //!
 //! | bytes | field |
 //! |---|---|
 //! | 0..4 | magic `b"JCFG"` |
-//! | 4 | layout version ([`JointConfigBlock::VERSION`]) |
+//! | 4 | layout version ([`JointConfigBlock::VERSION`], 2) |
 //! | 5 | robot joint number, counted from 1 (as `model-export --joints`) |
-//! | 6..14 | reserved, zero |
-//! | 14..16 | CRC-16/CCITT-FALSE of bytes 0..14 (`message::crc16`, as the state bus) |
+//! | 6..8 | reserved, zero |
+//! | 8..24 | the robot's state-bus key (AES-128, [`super::canfd`]); all-zero and all-0xFF keys are refused |
+//! | 24..30 | reserved, zero |
+//! | 30..32 | CRC-16/CCITT-FALSE of bytes 0..30 (`message::crc16`) |
 //!
 //! [`select_joint`] turns the block into this board's slot among the compiled-in
 //! model's compensated joints, or refuses: erased flash, a wrong magic, version or
@@ -30,6 +33,8 @@ use crate::adaptation::AdaptationConfig;
 pub struct JointConfigBlock {
     /// The robot joint this board drives, counted from 1.
     pub joint_number: u8,
+    /// The robot's state-bus key (the same on every drive of one robot).
+    pub bus_key: [u8; 16],
 }
 
 /// Why the configuration block was refused.
@@ -46,6 +51,8 @@ pub enum JointConfigFault {
     BadCrc,
     /// Reserved bytes are not zero (a newer layout this firmware does not read).
     ReservedNotZero,
+    /// The bus key is all zero or all 0xFF (never provisioned).
+    NoBusKey,
     /// The block names a joint (counted from 1) the compiled-in model does not
     /// compensate (or joint 0).
     JointNotCompensated(u8),
@@ -55,11 +62,13 @@ pub enum JointConfigFault {
 
 impl JointConfigBlock {
     /// Bytes of the block.
-    pub const LEN: usize = 16;
+    pub const LEN: usize = 32;
     /// The magic at bytes 0..4.
     pub const MAGIC: [u8; 4] = *b"JCFG";
     /// The layout version this firmware writes and reads.
-    pub const VERSION: u8 = 1;
+    pub const VERSION: u8 = 2;
+    /// Offset of the bus key.
+    const KEY_AT: usize = 8;
     /// Offset of the CRC.
     const CRC_AT: usize = Self::LEN - 2;
 
@@ -69,13 +78,15 @@ impl JointConfigBlock {
         b[..4].copy_from_slice(&Self::MAGIC);
         b[4] = Self::VERSION;
         b[5] = self.joint_number;
+        b[Self::KEY_AT..Self::KEY_AT + 16].copy_from_slice(&self.bus_key);
         let crc = crc16(&b[..Self::CRC_AT]);
         b[Self::CRC_AT..].copy_from_slice(&crc.to_le_bytes());
         b
     }
 
-    /// Reads a block, checking erasure, magic, version, CRC and the reserved bytes in
-    /// that order (the joint number is checked against the model by [`select_joint`]).
+    /// Reads a block, checking erasure, magic, version, CRC, the reserved bytes and
+    /// the key in that order (the joint number is checked against the model by
+    /// [`select_joint`]).
     pub fn decode(b: &[u8; Self::LEN]) -> Result<Self, JointConfigFault> {
         if b.iter().all(|&x| x == 0xFF) {
             return Err(JointConfigFault::Erased);
@@ -90,10 +101,21 @@ impl JointConfigBlock {
         if crc16(&b[..Self::CRC_AT]) != crc {
             return Err(JointConfigFault::BadCrc);
         }
-        if b[6..Self::CRC_AT].iter().any(|&x| x != 0) {
+        let reserved = b[6..Self::KEY_AT]
+            .iter()
+            .chain(&b[Self::KEY_AT + 16..Self::CRC_AT]);
+        if reserved.into_iter().any(|&x| x != 0) {
             return Err(JointConfigFault::ReservedNotZero);
         }
-        Ok(Self { joint_number: b[5] })
+        let mut bus_key = [0u8; 16];
+        bus_key.copy_from_slice(&b[Self::KEY_AT..Self::KEY_AT + 16]);
+        if bus_key.iter().all(|&x| x == 0) || bus_key.iter().all(|&x| x == 0xFF) {
+            return Err(JointConfigFault::NoBusKey);
+        }
+        Ok(Self {
+            joint_number: b[5],
+            bus_key,
+        })
     }
 }
 
@@ -106,6 +128,8 @@ pub struct JointSlot {
     pub slot: usize,
     /// The robot joint, counted from 1.
     pub joint_number: u8,
+    /// The robot's state-bus key from the block.
+    pub bus_key: [u8; 16],
 }
 
 /// This board's slot from its configuration block `block` and the compiled-in
@@ -125,6 +149,7 @@ pub fn select_joint<const J: usize>(
         Some(None) => Ok(JointSlot {
             slot,
             joint_number: c.joint_number,
+            bus_key: c.bus_key,
         }),
         Some(Some(field)) => Err(JointConfigFault::InvalidProfile(field)),
         None => Err(JointConfigFault::JointNotCompensated(c.joint_number)),
@@ -190,9 +215,12 @@ mod tests {
     const WRIST: [usize; 3] = [3, 4, 5];
     const PROFILES: [JointProfile; 3] = [JointProfile::BOARD; 3];
 
+    const KEY: [u8; 16] = *b"0123456789abcdef";
+
     fn block(joint: u8) -> [u8; JointConfigBlock::LEN] {
         JointConfigBlock {
             joint_number: joint,
+            bus_key: KEY,
         }
         .encode()
     }
@@ -201,23 +229,19 @@ mod tests {
     fn the_block_has_its_documented_layout() {
         let b = block(5);
         assert_eq!(&b[..4], b"JCFG");
-        assert_eq!(b[4], 1);
+        assert_eq!(b[4], 2);
         assert_eq!(b[5], 5);
-        assert!(b[6..14].iter().all(|&x| x == 0));
-        assert_eq!(u16::from_le_bytes([b[14], b[15]]), crc16(&b[..14]));
+        assert!(b[6..8].iter().all(|&x| x == 0));
+        assert_eq!(b[8..24], KEY);
+        assert!(b[24..30].iter().all(|&x| x == 0));
+        assert_eq!(u16::from_le_bytes([b[30], b[31]]), crc16(&b[..30]));
         assert_eq!(
             JointConfigBlock::decode(&b),
-            Ok(JointConfigBlock { joint_number: 5 })
+            Ok(JointConfigBlock {
+                joint_number: 5,
+                bus_key: KEY
+            })
         );
-        // The bytes board/README.md lists for joints 4, 5 and 6.
-        let head = [0x4a, 0x43, 0x46, 0x47, 0x01];
-        for (joint, crc) in [(4u8, [0xb5, 0x42]), (5, [0x96, 0xa9]), (6, [0xd2, 0x84])] {
-            let mut want = [0u8; 16];
-            want[..5].copy_from_slice(&head);
-            want[5] = joint;
-            want[14..].copy_from_slice(&crc);
-            assert_eq!(block(joint), want, "joint {joint}");
-        }
     }
 
     #[test]
@@ -227,7 +251,8 @@ mod tests {
                 select_joint(&block(number), &WRIST, &PROFILES),
                 Ok(JointSlot {
                     slot,
-                    joint_number: number
+                    joint_number: number,
+                    bus_key: KEY,
                 })
             );
         }
@@ -236,16 +261,16 @@ mod tests {
     #[test]
     fn bad_blocks_are_refused() {
         assert_eq!(
-            select_joint(&[0xFF; 16], &WRIST, &PROFILES),
+            select_joint(&[0xFF; JointConfigBlock::LEN], &WRIST, &PROFILES),
             Err(JointConfigFault::Erased)
         );
         assert_eq!(
-            select_joint(&[0; 16], &WRIST, &PROFILES),
+            select_joint(&[0; JointConfigBlock::LEN], &WRIST, &PROFILES),
             Err(JointConfigFault::BadMagic)
         );
         // Every single-bit flip of a valid block is refused (none selects a joint).
         let good = block(5);
-        for byte in 0..16 {
+        for byte in 0..JointConfigBlock::LEN {
             for bit in 0..8 {
                 let mut b = good;
                 b[byte] ^= 1 << bit;
@@ -256,21 +281,39 @@ mod tests {
                 }
             }
         }
+        // The first layout (no key), with its own CRC: refused by version.
         let mut b = good;
-        b[4] = 2;
+        b[4] = 1;
+        let crc = crc16(&b[..30]).to_le_bytes();
+        b[30..].copy_from_slice(&crc);
         assert_eq!(
             select_joint(&b, &WRIST, &PROFILES),
-            Err(JointConfigFault::UnsupportedVersion(2))
+            Err(JointConfigFault::UnsupportedVersion(1))
         );
         // Reserved bytes set, with a matching CRC: a layout this firmware does not read.
-        let mut b = good;
-        b[8] = 1;
-        let crc = crc16(&b[..14]).to_le_bytes();
-        b[14..].copy_from_slice(&crc);
-        assert_eq!(
-            select_joint(&b, &WRIST, &PROFILES),
-            Err(JointConfigFault::ReservedNotZero)
-        );
+        for at in [6, 7, 24, 29] {
+            let mut b = good;
+            b[at] = 1;
+            let crc = crc16(&b[..30]).to_le_bytes();
+            b[30..].copy_from_slice(&crc);
+            assert_eq!(
+                select_joint(&b, &WRIST, &PROFILES),
+                Err(JointConfigFault::ReservedNotZero),
+                "byte {at}"
+            );
+        }
+        // An unprovisioned key.
+        for key in [[0u8; 16], [0xFF; 16]] {
+            let b = JointConfigBlock {
+                joint_number: 5,
+                bus_key: key,
+            }
+            .encode();
+            assert_eq!(
+                select_joint(&b, &WRIST, &PROFILES),
+                Err(JointConfigFault::NoBusKey)
+            );
+        }
         // Joints the model does not compensate, and joint 0.
         for n in [0u8, 1, 3, 7, 255] {
             assert_eq!(
@@ -289,7 +332,13 @@ mod tests {
 
     #[test]
     fn a_refusal_runs_no_feedforward_and_drives_only_with_a_shared_profile() {
-        let plan = plan_startup(&[0xFF; 16], &WRIST, &PROFILES, 20_000.0, 100);
+        let plan = plan_startup(
+            &[0xFF; JointConfigBlock::LEN],
+            &WRIST,
+            &PROFILES,
+            20_000.0,
+            100,
+        );
         assert_eq!(plan.joint, Err(JointConfigFault::Erased));
         assert_eq!(plan.compensator, None);
         assert_eq!(plan.adaptation, AdaptationConfig::OFF);

@@ -6,6 +6,7 @@ pub mod excite;
 pub mod export;
 pub mod identify;
 pub mod import;
+pub mod provision;
 pub mod sil;
 pub mod simulate;
 pub mod train;
