@@ -173,7 +173,7 @@ impl Code4 {
         self.0
     }
     /// The smallest code whose table value reaches `value` (the last code when none does).
-    pub fn at_least(table: &[u16; 16], value: u16) -> Self {
+    pub const fn at_least(table: &[u16; 16], value: u16) -> Self {
         let mut i = 0;
         while i < 15 && table[i] < value {
             i += 1;
@@ -200,6 +200,18 @@ pub mod idrive_ma {
     /// DRV8353 IDRIVEN (sink), mA (codes 0 and 1 both 100 mA).
     pub const DRV8353_SINK: [u16; 16] = [
         100, 100, 200, 300, 600, 700, 800, 900, 1100, 1200, 1300, 1400, 1700, 1800, 1900, 2000,
+    ];
+}
+
+/// VDS overcurrent thresholds, mV, per VDS_LVL code (SLVSDJ3 / SLVSDY6 OCP control).
+pub mod vds_lvl_mv {
+    /// DRV8323.
+    pub const DRV8323: [u16; 16] = [
+        60, 130, 200, 260, 310, 450, 530, 600, 680, 750, 940, 1130, 1300, 1500, 1700, 1880,
+    ];
+    /// DRV8353.
+    pub const DRV8353: [u16; 16] = [
+        60, 70, 80, 90, 100, 200, 300, 400, 500, 600, 700, 800, 900, 1000, 1500, 2000,
     ];
 }
 
@@ -867,6 +879,8 @@ mod tests {
         assert_eq!(Code4::at_least(&idrive_ma::DRV8353_SOURCE, 100).get(), 2);
         assert_eq!(Code4::at_least(&idrive_ma::DRV8353_SINK, 600).get(), 4);
         assert_eq!(Code4::at_least(&idrive_ma::DRV8323_SOURCE, 5000).get(), 15);
+        assert_eq!(Code4::at_least(&vds_lvl_mv::DRV8353, 700).get(), 10);
+        assert_eq!(Code4::at_least(&vds_lvl_mv::DRV8323, 750).get(), 9);
     }
 
     #[test]
