@@ -38,7 +38,10 @@ fn check(map: &[Assignment], chip: &Metadata) -> Vec<String> {
             Function::Output { .. } | Function::Input { .. } => continue,
         };
         let Some(p) = chip.peripherals.iter().find(|p| p.name == peripheral) else {
-            errors.push(format!("{pin} ({}): no peripheral {peripheral} on {}", a.role, chip.name));
+            errors.push(format!(
+                "{pin} ({}): no peripheral {peripheral} on {}",
+                a.role, chip.name
+            ));
             continue;
         };
         let on_pin: Vec<_> = p.pins.iter().filter(|pp| pp.pin == pin).collect();
@@ -74,7 +77,12 @@ fn every_board_map_matches_the_chip() {
         let errors = check(b.pins, &METADATA);
         assert!(errors.is_empty(), "{}:\n{}", b.name, errors.join("\n"));
         assert!(b.chip.starts_with("STM32G474"), "{}", b.chip);
-        println!("{}: {} pins checked against {}", b.name, b.pins.len(), METADATA.name);
+        println!(
+            "{}: {} pins checked against {}",
+            b.name,
+            b.pins.len(),
+            METADATA.name
+        );
     }
 }
 
@@ -108,7 +116,10 @@ fn a_wrong_af_is_rejected() {
     let errors = check(&wrong, &METADATA);
     println!("{errors:?}");
     assert_eq!(errors.len(), 1, "{errors:?}");
-    assert!(errors[0].starts_with("PA0 (phase a PWM): TIM5 CH1 is AF Some(2)"), "{errors:?}");
+    assert!(
+        errors[0].starts_with("PA0 (phase a PWM): TIM5 CH1 is AF Some(2)"),
+        "{errors:?}"
+    );
 
     // Every AF of every alternate-function pin, off by one either way, is caught.
     for b in ALL {
@@ -126,7 +137,12 @@ fn a_wrong_af_is_rejected() {
                         signal,
                         af: bad,
                     };
-                    assert!(!check(&m, &METADATA).is_empty(), "{} {}: AF {bad} passed", b.name, a.role);
+                    assert!(
+                        !check(&m, &METADATA).is_empty(),
+                        "{} {}: AF {bad} passed",
+                        b.name,
+                        a.role
+                    );
                 }
             }
         }
@@ -163,5 +179,9 @@ fn a_wrong_signal_missing_pin_or_double_use_is_rejected() {
     let mut m: Vec<Assignment> = g.pins.to_vec();
     m[1].pin = m[0].pin;
     let e = check(&m, &METADATA);
-    assert!(e.iter().any(|l| l.contains("already used for encoder chip select")), "{e:?}");
+    assert!(
+        e.iter()
+            .any(|l| l.contains("already used for encoder chip select")),
+        "{e:?}"
+    );
 }

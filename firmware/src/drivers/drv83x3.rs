@@ -162,11 +162,7 @@ pub struct Code4(u8);
 impl Code4 {
     /// A code, `None` above 15.
     pub const fn new(code: u8) -> Option<Self> {
-        if code < 16 {
-            Some(Self(code))
-        } else {
-            None
-        }
+        if code < 16 { Some(Self(code)) } else { None }
     }
     /// The code.
     pub const fn get(self) -> u8 {
@@ -711,17 +707,19 @@ mod tests {
                         }
                         self.regs[2] = v;
                     }
-                    7 => self.regs[7] = if self.variant == Variant::Drv8353 { d & 1 } else { 0 },
+                    7 => {
+                        self.regs[7] = if self.variant == Variant::Drv8353 {
+                            d & 1
+                        } else {
+                            0
+                        }
+                    }
                     _ => self.regs[a] = d,
                 }
             }
             self.regs[0] = self.latched.status1;
             self.regs[1] = self.latched.status2;
-            if a < 8 {
-                self.regs[a]
-            } else {
-                0
-            }
+            if a < 8 { self.regs[a] } else { 0 }
         }
     }
 
@@ -941,11 +939,13 @@ mod tests {
             assert!(!en.get(), "{f:?} left ENABLE high");
         }
         // An overtemperature warning alone does not stop the bridge.
-        assert!(!Faults {
-            status1: 0,
-            status2: Faults::OTW
-        }
-        .any());
+        assert!(
+            !Faults {
+                status1: 0,
+                status2: Faults::OTW
+            }
+            .any()
+        );
     }
 
     #[test]
@@ -956,7 +956,11 @@ mod tests {
         let mut drv = Drv83x3::new(dev, Pin(&en), Variant::Drv8323);
         assert!(matches!(
             drv.start_up(&config(), || {}),
-            Err(Error::ReadBack { address: 2, read: 0x7FF, .. })
+            Err(Error::ReadBack {
+                address: 2,
+                read: 0x7FF,
+                ..
+            })
         ));
         assert!(!en.get());
 
