@@ -59,18 +59,20 @@ mod app {
         let spi = EncoderSpi::init(&dp.RCC, dp.SPI1, pin("gate driver chip select"));
         let mut drv = Drv83x3::new(spi, enable, Variant::Drv8353);
         // t_WAKE of the DRV8353 is at most 1 ms; wait 2 ms.
-        match drv.start_up(&GATE_DRIVER, || {
+        let started = drv.start_up(&GATE_DRIVER, || {
             cortex_m::asm::delay(2 * clock::CORE_CLOCK_HZ / 1000)
-        }) {
-            Ok(_f) => firmware::fw_info!(
+        });
+        if let Ok(_f) = started {
+            firmware::fw_info!(
                 "gate driver up: configuration read back, status {=u16:#x} {=u16:#x}, nFAULT {=bool}",
                 _f.status1,
                 _f.status2,
                 pins::read(_fault_line)
-            ),
-            Err(_) => firmware::fw_error!(
+            );
+        } else {
+            firmware::fw_error!(
                 "gate driver start-up refused (no answer, a register read back wrong, or a fault): ENABLE low"
-            ),
+            );
         }
         // Bridge off: nothing in this image switches the gates.
         let _ = drv.disable();
@@ -79,9 +81,10 @@ mod app {
         let spi = EncoderSpi::init(&dp.RCC, spi.release(), pin("encoder chip select"));
         let mut encoder = As5047p::new(spi);
         loop {
-            match encoder.read_angle_counts() {
-                Ok(_counts) => firmware::fw_info!("encoder {=u16} counts", _counts),
-                Err(_) => firmware::fw_error!("encoder read failed"),
+            if let Ok(_counts) = encoder.read_angle_counts() {
+                firmware::fw_info!("encoder {=u16} counts", _counts);
+            } else {
+                firmware::fw_error!("encoder read failed");
             }
             cortex_m::asm::delay(clock::CORE_CLOCK_HZ);
         }
