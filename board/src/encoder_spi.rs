@@ -1,16 +1,18 @@
-//! SPI1 with PA4 as chip select (mode 1, 8-bit frames, f_PCLK / 32 = 5.3 MHz): the
-//! AS5047P encoder's bus, an embedded-hal 1.0 `SpiDevice` for
-//! `firmware::drivers::as5047p` (chip select low for the whole transaction, every
-//! wait bounded). (`unsafe`: the PAC's raw multi-bit field writes, and byte-wide data
+//! SPI1 with one GPIO chip select (mode 1, 8-bit frames, f_PCLK / 32 = 5.3 MHz): an
+//! embedded-hal 1.0 `SpiDevice` for `firmware::drivers::as5047p` (the encoder: PA4
+//! on the generic board, PB11 on moteus) and `firmware::drivers::drv83x3` (the
+//! moteus gate driver, PC4), chip select low for the whole transaction, every
+//! wait bounded. One device owns SPI1 at a time (`release` gives it back). (`unsafe`: the PAC's raw multi-bit field writes, and byte-wide data
 //! register access.)
 
-use crate::{pac, spin_until};
+use crate::boards::PinId;
+use crate::{pac, pins, spin_until};
 use embedded_hal::spi::{ErrorKind, ErrorType, Operation, SpiDevice};
 
-/// SPI1 and the chip-select pin's port.
+/// SPI1 and the chip-select pin.
 pub struct EncoderSpi {
     spi: pac::SPI1,
-    gpio: pac::GPIOA,
+    cs: PinId,
 }
 
 /// A busy-wait ran out (the bus is stuck).
@@ -29,8 +31,9 @@ impl ErrorType for EncoderSpi {
 
 impl EncoderSpi {
     /// Clocks and enables SPI1: master, mode 1, 8-bit frames with the RX FIFO
-    /// threshold at 8 bits, software chip select (PA4, set up by `pins`), f_PCLK / 32.
-    pub fn init(rcc: &pac::RCC, s: pac::SPI1, gpio: pac::GPIOA) -> Self {
+    /// threshold at 8 bits, software chip select `cs` (an output set up by `pins`),
+    /// f_PCLK / 32.
+    pub fn init(rcc: &pac::RCC, s: pac::SPI1, cs: PinId) -> Self {
         rcc.apb2enr().modify(|_, w| w.spi1en().set_bit());
         s.cr1().write(|w| {
             unsafe { w.br().bits(0b100) }
@@ -46,7 +49,12 @@ impl EncoderSpi {
         s.cr2()
             .write(|w| unsafe { w.ds().bits(0b0111) }.frxth().set_bit());
         s.cr1().modify(|_, w| w.spe().set_bit());
-        EncoderSpi { spi: s, gpio }
+        EncoderSpi { spi: s, cs }
+    }
+
+    /// Give SPI1 back (chip select left high).
+    pub fn release(self) -> pac::SPI1 {
+        self.spi
     }
 
     #[inline]
@@ -100,7 +108,7 @@ impl EncoderSpi {
 impl SpiDevice for EncoderSpi {
     #[inline]
     fn transaction(&mut self, operations: &mut [Operation<'_, u8>]) -> Result<(), SpiTimeout> {
-        self.gpio.bsrr().write(|w| w.br4().set_bit());
+        pins::write(self.cs, false);
         // AS5047P: t_L (chip select low to first clock) >= 350 ns.
         cortex_m::asm::delay(60);
         let mut result = Ok(());
@@ -112,7 +120,7 @@ impl SpiDevice for EncoderSpi {
         }
         let spi = &self.spi;
         spin_until(|| spi.sr().read().bsy().bit_is_clear());
-        self.gpio.bsrr().write(|w| w.bs4().set_bit());
+        pins::write(self.cs, true);
         // t_CSn (chip select high between frames) >= 350 ns.
         cortex_m::asm::delay(60);
         result

@@ -2,8 +2,9 @@
 //! register access (`stm32g4` PAC) and its `unsafe` behind a safe interface. The
 //! binaries (`board`, `board-bench`) wire them to the `firmware` library.
 //!
-//! For `thumbv7em-none-eabihf` only: built for the host the crate is empty (so that
-//! `cargo test --workspace` and `cargo clippy --workspace` pass over it).
+//! For `thumbv7em-none-eabihf` only: built for the host the crate holds only the pin
+//! maps (`boards`, pure data, checked by `tests/pin_map.rs`), so that
+//! `cargo test --workspace` and `cargo clippy --workspace` pass over it.
 #![cfg_attr(target_os = "none", no_std)]
 #![deny(unsafe_code)]
 #![warn(missing_docs)]
@@ -11,6 +12,7 @@
 #[cfg(target_os = "none")]
 #[allow(unsafe_code)]
 pub mod adc;
+pub mod boards;
 #[cfg(target_os = "none")]
 #[allow(unsafe_code)]
 pub mod ccm;

@@ -33,6 +33,7 @@ fn main() {
 #[cfg(target_os = "none")]
 mod app {
     use board::adc::{AMPS_PER_COUNT, Adc, CURRENT_ZERO_COUNTS, VOLTS_PER_COUNT};
+    use board::boards::generic::BOARD;
     use board::encoder_spi::EncoderSpi;
     use board::pac::{self, interrupt};
     use board::pwm::Pwm;
@@ -155,10 +156,13 @@ mod app {
             );
         }
         let session = session::draw(&dp.RCC, &dp.RNG);
-        pins::init(&dp.RCC, &dp.GPIOA, &dp.GPIOB);
+        pins::init(&dp.RCC, &BOARD);
         let mut pwm = Pwm::init(&dp.RCC, dp.TIM1, PWM_ARR);
         let mut adc = Adc::init(&dp.RCC, &dp.ADC12_COMMON, dp.ADC1);
-        let encoder_spi = EncoderSpi::init(&dp.RCC, dp.SPI1, dp.GPIOA);
+        let Some(encoder_cs) = BOARD.by_role("encoder chip select") else {
+            cortex_m::asm::udf();
+        };
+        let encoder_spi = EncoderSpi::init(&dp.RCC, dp.SPI1, encoder_cs.pin);
         let mut bus = Bus::init(&dp.RCC, dp.USART3, CORE_CLOCK_HZ, bus_baud);
 
         // The drive: the joint's profile (on a refused block, the drive all compensated

@@ -223,6 +223,7 @@ impl Default for Options {
         Options {
             binaries: vec![
                 FirmwareBin::Board,
+                FirmwareBin::BoardMoteus,
                 FirmwareBin::Qemu,
                 FirmwareBin::QemuBench,
             ],

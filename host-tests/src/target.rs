@@ -25,6 +25,8 @@ pub fn target_dir() -> PathBuf {
 pub enum FirmwareBin {
     /// The STM32G474RE board binary (package `board`, `board/memory.x`).
     Board,
+    /// The mjbots moteus r4.11 bring-up binary (package `board`, `board/memory.x`).
+    BoardMoteus,
     /// The QEMU mps2-an386 test binary (package `firmware/qemu`).
     Qemu,
     /// The QEMU mps2-an386 bench binary: runs every registered workload
@@ -40,6 +42,7 @@ impl FirmwareBin {
     pub const fn name(self) -> &'static str {
         match self {
             FirmwareBin::Board => "board",
+            FirmwareBin::BoardMoteus => "board-moteus",
             FirmwareBin::Qemu => "firmware-qemu",
             FirmwareBin::QemuBench => "firmware-qemu-bench",
             FirmwareBin::BoardBench => "board-bench",
@@ -49,7 +52,9 @@ impl FirmwareBin {
     /// Cargo arguments that select this binary's package and features.
     fn cargo_args(self) -> &'static [&'static str] {
         match self {
-            FirmwareBin::Board | FirmwareBin::BoardBench => &["-p", "board"],
+            FirmwareBin::Board | FirmwareBin::BoardMoteus | FirmwareBin::BoardBench => {
+                &["-p", "board"]
+            }
             FirmwareBin::Qemu | FirmwareBin::QemuBench => {
                 &["--manifest-path", "firmware/qemu/Cargo.toml"]
             }

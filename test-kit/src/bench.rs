@@ -50,6 +50,7 @@ pub fn visit_all<V: Visitor>(v: &mut V) {
     v.visit::<LstmLinearInt16>();
     v.visit::<LstmLinearInt8>();
     v.visit::<StateFrameMac>();
+    v.visit::<DrivePwmTick>();
 }
 
 /// Number of registered workloads.
@@ -466,5 +467,72 @@ mod tests {
         let mut w = Dot64::new();
         w.tick();
         assert_eq!(w.output().to_bits(), golden::dot_output(0).to_bits());
+    }
+}
+
+/// One PWM-rate drive tick (`JointDrive::pwm_tick`: Clarke and Park transforms, the
+/// current loop, space-vector modulation and, every fourth tick, the position and
+/// velocity cascade) on the board's profile at 20 kHz: the control work of the board
+/// image's PWM interrupt (`ADC1_2`), without its ADC, SPI and timer register accesses,
+/// which the QEMU machine of the cycle model does not have.
+pub struct DrivePwmTick {
+    drive: firmware::control::JointDrive,
+    t: u32,
+    out: f32,
+    bridge_enabled: bool,
+}
+
+impl Workload for DrivePwmTick {
+    const NAME: &'static str = "drive_pwm_tick";
+
+    fn new() -> Self {
+        use firmware::control::{JointDrive, JointProfile, JointReference};
+        let mut drive = JointDrive::new(JointProfile::BOARD.drive_config(20_000.0));
+        drive.set_position_origin(0.0);
+        drive.set_reference(&JointReference::default());
+        DrivePwmTick {
+            drive,
+            t: 0,
+            out: 0.0,
+            bridge_enabled: false,
+        }
+    }
+
+    #[inline(never)]
+    #[cfg_attr(target_os = "none", unsafe(link_section = ".ccmram_text"))]
+    fn tick(&mut self) {
+        // Motor angle in [0, 2 pi): 480 steps of PHASE_STEP, then again.
+        let phase = (self.t % 480) as f32 * PHASE_STEP;
+        let (s, c) = math::sin_cos(phase);
+        // Within the board profile's sensor limits (bus 36..56 V, trip 30 A), so the
+        // whole control path runs, not a fault exit.
+        let sample = firmware::control::SensorSample {
+            phase_current_a: [0.5 * s, 0.5 * c],
+            motor_angle_rad: phase,
+            bus_v: 48.0,
+        };
+        let o = self.drive.pwm_tick(&sample);
+        self.out = o.duties[0] + o.duties[1] + o.duties[2];
+        self.bridge_enabled = o.bridge_enabled;
+        self.t += 1;
+    }
+
+    fn output(&self) -> f32 {
+        self.out
+    }
+}
+
+#[cfg(test)]
+mod drive_tests {
+    use super::*;
+
+    #[test]
+    fn the_drive_workload_runs_the_control_path_not_a_fault_exit() {
+        let mut w = DrivePwmTick::new();
+        for _ in 0..1000 {
+            w.tick();
+            assert!(w.bridge_enabled, "tick {} left the bridge off", w.t);
+            assert!(w.output().is_finite());
+        }
     }
 }

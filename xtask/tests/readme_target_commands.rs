@@ -45,6 +45,10 @@ fn firmware_target_commands_run_as_written() {
             "board/README.md",
             "cargo build --release --target thumbv7em-none-eabihf -p board --bin board --features defmt",
         ),
+        (
+            "board/README.md",
+            "cargo build --release --target thumbv7em-none-eabihf -p board --bin board-moteus --features defmt",
+        ),
     ] {
         run_at_root(&readme_command(readme, command));
     }
