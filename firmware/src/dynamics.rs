@@ -52,20 +52,46 @@ pub struct JointModel {
     pub stribeck_nm: [f32; STRIBECK_TERMS],
     /// Quadratic drag `qd*|qd|` [N*m*s^2/rad^2].
     pub quadratic_nm_s2_rad2: f32,
+    /// `[min, max]` of the joint angle seen by identification [rad]
+    /// (`[-f32::MAX, f32::MAX]`: not recorded).
+    pub q_range_rad: [f32; 2],
+    /// `[min, max]` of the joint speed seen by identification [rad/s]; the extended
+    /// friction terms are continued along their tangent beyond it.
+    pub qd_range_rad_s: [f32; 2],
+    /// `[min, max]` of the joint acceleration seen by identification [rad/s^2].
+    pub qdd_range_rad_s2: [f32; 2],
 }
+
+/// The range of a joint input nothing was recorded for (every finite value is inside).
+pub const UNBOUNDED_RANGE: [f32; 2] = [-f32::MAX, f32::MAX];
 
 impl JointModel {
     /// The extended friction basis' torque [N*m] at speed `qd` [rad/s]: the
-    /// Stribeck-shaped terms (those with a non-zero coefficient) and the quadratic drag.
+    /// Stribeck-shaped terms (those with a non-zero coefficient) and the quadratic drag,
+    /// evaluated at `qd` clamped to [`JointModel::qd_range_rad_s`] and continued beyond
+    /// it along the tangent at the edge (so it grows at most linearly outside the
+    /// identified speeds; inside, the slope term is an exact `+ 0`).
     #[inline]
     pub fn extended_friction_nm(&self, qd_rad_s: f32) -> f32 {
-        let mut tau = self.quadratic_nm_s2_rad2 * qd_rad_s * qd_rad_s.abs();
+        let [lo, hi] = self.qd_range_rad_s;
+        // A NaN speed stays NaN (both comparisons are false).
+        let v = if qd_rad_s < lo {
+            lo
+        } else if qd_rad_s > hi {
+            hi
+        } else {
+            qd_rad_s
+        };
+        let mut tau = self.quadratic_nm_s2_rad2 * v * v.abs();
+        let mut slope = 2.0 * self.quadratic_nm_s2_rad2 * v.abs();
         for (f, inv) in self.stribeck_nm.iter().zip(STRIBECK_INV_SPEEDS_S_RAD) {
             if *f != 0.0 {
-                tau += f * math::tanh(qd_rad_s * inv);
+                let t = math::tanh(v * inv);
+                tau += f * t;
+                slope += f * inv * (1.0 - t * t);
             }
         }
-        tau
+        tau + slope * (qd_rad_s - v)
     }
 
     /// A massless, frictionless joint about z at the previous body's origin.
@@ -80,6 +106,9 @@ impl JointModel {
         rotor_inertia_kg_m2: 0.0,
         stribeck_nm: [0.0; STRIBECK_TERMS],
         quadratic_nm_s2_rad2: 0.0,
+        q_range_rad: UNBOUNDED_RANGE,
+        qd_range_rad_s: UNBOUNDED_RANGE,
+        qdd_range_rad_s2: UNBOUNDED_RANGE,
     };
 }
 
@@ -303,5 +332,46 @@ mod tests {
                 "{tau} {expect}"
             );
         }
+    }
+
+    /// Inside the identified speeds the extended terms are the plain basis, bit for bit;
+    /// beyond, they grow linearly with the slope they have at the edge, on both sides.
+    #[test]
+    fn extended_friction_is_continued_linearly_beyond_the_identified_speeds() {
+        let mut j = JointModel::ZERO;
+        j.stribeck_nm = [0.4, -0.3, 0.8];
+        j.quadratic_nm_s2_rad2 = 2.5;
+        let plain = |v: f32| {
+            let mut t = j.quadratic_nm_s2_rad2 * v * v.abs();
+            for (f, inv) in j.stribeck_nm.iter().zip(STRIBECK_INV_SPEEDS_S_RAD) {
+                t += f * math::tanh(v * inv);
+            }
+            t
+        };
+        // Unbounded range: the plain basis everywhere.
+        for v in [-3.0f32, -0.1, 0.0, 0.02, 1.7] {
+            assert_eq!(j.extended_friction_nm(v).to_bits(), plain(v).to_bits());
+        }
+        j.qd_range_rad_s = [-0.4, 0.6];
+        for v in [-0.4f32, -0.1, 0.0, 0.3, 0.6] {
+            assert_eq!(
+                j.extended_friction_nm(v).to_bits(),
+                plain(v).to_bits(),
+                "{v}"
+            );
+        }
+        for (edge, dir) in [(0.6f32, 1.0f32), (-0.4, -1.0)] {
+            let at = |d: f32| j.extended_friction_nm(edge + dir * d);
+            let step = 0.01;
+            let s_edge = (plain(edge + dir * step) - plain(edge)) / step;
+            // Equal increments beyond the edge: equal torque increments (a straight line)
+            // with the edge's slope, where the plain quadratic would grow as qd².
+            let d1 = at(1.0) - at(0.0);
+            let d2 = at(2.0) - at(1.0);
+            assert!((d1 - d2).abs() < 1e-4, "{d1} {d2}");
+            assert!((d1 - s_edge).abs() < 0.05 * s_edge.abs(), "{d1} {s_edge}");
+            assert!(plain(edge + dir * 10.0).abs() > 5.0 * at(10.0).abs());
+        }
+        assert!(j.extended_friction_nm(f32::NAN).is_nan());
     }
 }

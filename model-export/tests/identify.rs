@@ -273,7 +273,9 @@ fn cli_bad_inputs_name_file_line_and_field() {
         "{e}"
     );
 
-    // Unidentifiable parameters: a log where joint 6 never moves.
+    // Unidentifiable parameters: a log where joint 6 never moves identifies what it
+    // holds; the directions it cannot identify are printed, recorded and keep the
+    // nominal values.
     let mut s = simulate(&m, 600, 7, None);
     for k in 0..s.len() {
         s.q_rad[5][k] = 0.2;
@@ -282,20 +284,44 @@ fn cli_bad_inputs_name_file_line_and_field() {
     }
     let p = d.path().join("still6.csv");
     write_log(&p, &s);
-    let e = identify_err(
-        robot,
-        &p,
-        &[
+    let model = d.path().join("still6.json");
+    let out = bin()
+        .args(["identify", "--robot"])
+        .arg(robot)
+        .arg("--log")
+        .arg(&p)
+        .arg("-o")
+        .arg(&model)
+        .args([
             "--layout",
             "torque",
             "--use-logged-qd",
             "--qdd-cols",
             "20,21,22,23,24,25",
-        ],
+        ])
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{stdout}{}",
+        String::from_utf8_lossy(&out.stderr)
     );
     assert!(
-        e.contains("unidentifiable") || e.contains("rank deficient"),
-        "{e}"
+        stdout.contains("dropped") && stdout.contains("fv6") && stdout.contains("fc6"),
+        "{stdout}"
     );
-    assert!(e.contains("fv6") && e.contains("fc6"), "{e}");
+    let file = identify::model_file::ModelFile::read(&model).unwrap();
+    let named: Vec<&str> = file
+        .dropped_directions
+        .iter()
+        .flat_map(|d| d.parameters.iter().map(|(n, _)| n.as_str()))
+        .collect();
+    assert!(named.iter().any(|n| n.ends_with("= fv6")), "{named:?}");
+    assert!(named.iter().any(|n| n.ends_with("= fc6")), "{named:?}");
+    let r6 = &file.identification_ranges[5];
+    assert!(
+        r6.q_rad.iter().all(|q| (q - 0.2).abs() < 1e-9) && r6.qd_rad_s == [0.0, 0.0],
+        "{r6:?}"
+    );
 }

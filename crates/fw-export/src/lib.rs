@@ -1477,6 +1477,17 @@ fn write_dynamics<const N: usize>(s: &mut String, section: &str, m: &RigidBodyMo
             "            quadratic_nm_s2_rad2: {},",
             f32_lit(j.quadratic_nm_s2_rad2)
         );
+        let _ = writeln!(s, "            q_range_rad: {},", list(&j.q_range_rad, f));
+        let _ = writeln!(
+            s,
+            "            qd_range_rad_s: {},",
+            list(&j.qd_range_rad_s, f)
+        );
+        let _ = writeln!(
+            s,
+            "            qdd_range_rad_s2: {},",
+            list(&j.qdd_range_rad_s2, f)
+        );
         let _ = writeln!(s, "        }},");
     }
     let _ = writeln!(s, "    ],");

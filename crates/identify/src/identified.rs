@@ -210,11 +210,65 @@ pub fn load_identified(source: &RobotSource, mp: &Path) -> anyhow::Result<Identi
     }
     let beta = DVector::from_iterator(names.len(), file.base_parameters.iter().map(|b| b.value));
     let standard_parameters = model.equivalent_standard(&beta);
+    let mut robot = model.robot;
+    robot.identified_ranges = identified_ranges(&file, &robot, mp)?;
     Ok(IdentifiedRobot {
-        robot: model.robot,
+        robot,
         standard_parameters,
         warning,
     })
+}
+
+/// The model file's identification ranges in the robot's modelled-joint order (empty
+/// when the file records none); each must name a modelled joint, in order, with finite
+/// `min <= max`.
+fn identified_ranges(
+    file: &ModelFile,
+    robot: &Robot,
+    mp: &Path,
+) -> anyhow::Result<Vec<robot::IdentifiedRanges>> {
+    if file.identification_ranges.is_empty() {
+        return Ok(Vec::new());
+    }
+    let modelled = robot.modelled_joints();
+    if file.identification_ranges.len() != modelled.len() {
+        bail!(
+            "{}, field identification_ranges: {} entries for {} modelled joints",
+            mp.display(),
+            file.identification_ranges.len(),
+            modelled.len()
+        );
+    }
+    let mut out = Vec::with_capacity(modelled.len());
+    for (k, (r, &j)) in file.identification_ranges.iter().zip(&modelled).enumerate() {
+        if r.joint != robot.joints[j].name {
+            bail!(
+                "{}, field identification_ranges[{k}].joint: '{}', expected '{}'",
+                mp.display(),
+                r.joint,
+                robot.joints[j].name
+            );
+        }
+        for (field, v) in [
+            ("q_rad", r.q_rad),
+            ("qd_rad_s", r.qd_rad_s),
+            ("qdd_rad_s2", r.qdd_rad_s2),
+        ] {
+            if !(v[0].is_finite() && v[1].is_finite() && v[0] <= v[1])
+                || v[0].abs() > f32::MAX as f64
+                || v[1].abs() > f32::MAX as f64
+            {
+                bail!(
+                    "{}, field identification_ranges[{k}].{field}: [{}, {}] is not a finite range (min <= max)",
+                    mp.display(),
+                    v[0],
+                    v[1]
+                );
+            }
+        }
+        out.push(r.to_robot());
+    }
+    Ok(out)
 }
 
 /// The robot and standard parameters of an identified model ([`load_identified`]), or,

@@ -14,6 +14,13 @@
 //! stays small for an exciting trajectory (≲ 1e4), so squaring it in the normal
 //! equations costs at most ~8 digits of the 16 and noise-free data are recovered to
 //! better than 1e-6 relative (tested).
+//!
+//! What the data cannot identify is dropped, not refused: eigen-directions of the
+//! scaled normal matrix whose singular value is below `rank_tolerance × σ_max` (and
+//! columns that are zero throughout) keep the prior's value (the nominal parameters, or
+//! zero), the others are solved from the data (a truncated eigen/SVD solve around the
+//! prior), and each dropped direction is reported with the parameters it mixes
+//! ([`DroppedDirection`]).
 #![deny(unsafe_code)]
 #![warn(missing_docs)]
 
@@ -161,6 +168,9 @@ pub struct IdentifyOptions {
     /// If set, parameters whose relative standard deviation exceeds this [%] are
     /// reported as unidentifiable (an error).
     pub max_relative_std_pct: Option<f64>,
+    /// Values the dropped (unidentifiable) directions keep, one per parameter (e.g. the
+    /// nominal parameters of the robot description); `None`: zero.
+    pub prior: Option<Vec<f64>>,
 }
 
 impl Default for IdentifyOptions {
@@ -169,6 +179,7 @@ impl Default for IdentifyOptions {
             weighting: Weighting::Ordinary,
             rank_tolerance: 1e-6,
             max_relative_std_pct: None,
+            prior: None,
         }
     }
 }
@@ -194,6 +205,36 @@ pub struct Identification {
     pub nrms_pct: Vec<f64>,
     /// Samples used.
     pub samples: usize,
+    /// The directions the data could not identify (they keep the prior's value; the
+    /// standard deviations cover the identified directions only).
+    pub dropped: Vec<DroppedDirection>,
+}
+
+/// A parameter combination the data cannot identify, dropped from the solve.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct DroppedDirection {
+    /// Its singular value relative to the largest (column-scaled problem; 0 for a
+    /// parameter whose column is zero throughout).
+    pub relative_singular_value: f64,
+    /// The parameters it mixes (name, weight of the unit eigenvector of the
+    /// column-scaled problem), weights above 0.05 in magnitude, largest first.
+    pub parameters: Vec<(String, f64)>,
+}
+
+impl fmt::Display for DroppedDirection {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let terms: Vec<String> = self
+            .parameters
+            .iter()
+            .map(|(n, w)| format!("{w:+.3}·{n}"))
+            .collect();
+        write!(
+            f,
+            "[{}] (relative singular value {:.2e})",
+            terms.join(" "),
+            self.relative_singular_value
+        )
+    }
 }
 
 /// Why an identification failed.
@@ -206,15 +247,8 @@ pub enum IdentifyError {
         /// Parameters to identify.
         params: usize,
     },
-    /// Columns that are zero throughout the data.
-    ZeroColumns(Vec<String>),
-    /// Rank deficiency: each entry lists the parameters in one unidentifiable direction.
-    RankDeficient {
-        /// Scaled condition number.
-        condition_number: f64,
-        /// Parameter combinations (name, weight) that the data cannot separate.
-        directions: Vec<Vec<(String, f64)>>,
-    },
+    /// The prior has the wrong length or a non-finite value.
+    BadPrior(String),
     /// Parameters whose relative standard deviation exceeds the limit.
     PoorlyIdentified(Vec<(String, f64)>),
 }
@@ -228,29 +262,7 @@ impl fmt::Display for IdentifyError {
                     "too few samples: {rows} equations for {params} parameters"
                 )
             }
-            IdentifyError::ZeroColumns(names) => write!(
-                f,
-                "unidentifiable parameters (their regressor column is zero in all the data): {}",
-                names.join(", ")
-            ),
-            IdentifyError::RankDeficient {
-                condition_number,
-                directions,
-            } => {
-                write!(
-                    f,
-                    "observation matrix is rank deficient (scaled condition number {condition_number:.3e}); the data cannot separate: "
-                )?;
-                for (i, d) in directions.iter().enumerate() {
-                    if i > 0 {
-                        write!(f, "; ")?;
-                    }
-                    let terms: Vec<String> =
-                        d.iter().map(|(n, w)| format!("{w:+.3}·{n}")).collect();
-                    write!(f, "[{}]", terms.join(" "))?;
-                }
-                Ok(())
-            }
+            IdentifyError::BadPrior(why) => write!(f, "prior parameters: {why}"),
             IdentifyError::PoorlyIdentified(p) => {
                 let terms: Vec<String> = p.iter().map(|(n, r)| format!("{n} ({r:.1} %)")).collect();
                 write!(
@@ -286,19 +298,41 @@ pub fn solve(
         Weighting::PerJointSigma(s) => s.clone(),
         _ => vec![1.0; nj],
     };
-    let mut sol = solve_weighted(ne, &sigma0, opt, &name)?;
+    let prior = match &opt.prior {
+        None => vec![0.0; p],
+        Some(v) if v.len() != p => {
+            return Err(IdentifyError::BadPrior(format!(
+                "{} values for {p} parameters",
+                v.len()
+            )));
+        }
+        Some(v) => match v.iter().position(|x| !x.is_finite()) {
+            Some(i) => {
+                return Err(IdentifyError::BadPrior(format!("{} is {}", name(i), v[i])));
+            }
+            None => v.clone(),
+        },
+    };
+    let mut sol = solve_weighted(ne, &sigma0, opt, &prior, &name)?;
     if opt.weighting == Weighting::PerJointFromOls {
         let dof = (ne.rows as f64 - p as f64 / nj as f64).max(1.0);
         let sigma: Vec<f64> = (0..nj)
             .map(|j| {
-                let rss = residual_ss(ne, j, &sol.0);
+                let rss = residual_ss(ne, j, &sol.x);
                 let floor = 1e-9 * (ne.yty[j] / ne.rows as f64).sqrt().max(1e-300);
                 (rss / dof).sqrt().max(floor)
             })
             .collect();
-        sol = solve_weighted(ne, &sigma, opt, &name)?;
+        sol = solve_weighted(ne, &sigma, opt, &prior, &name)?;
     }
-    let (x, cov_unit, cond, cond_s, sigma) = sol;
+    let WeightedSolution {
+        x,
+        cov_unit,
+        cond,
+        cond_s,
+        sigma,
+        dropped,
+    } = sol;
     // Residual variance of the weighted problem.
     let m = (ne.rows * nj) as f64;
     let wrss: f64 = (0..nj)
@@ -349,6 +383,7 @@ pub fn solve(
         rms_nm,
         nrms_pct,
         samples: ne.rows,
+        dropped,
     })
 }
 
@@ -358,12 +393,22 @@ fn residual_ss(ne: &NormalEquations, j: usize, x: &DVector<f64>) -> f64 {
     r.max(0.0)
 }
 
-type WeightedSolution = (DVector<f64>, DMatrix<f64>, f64, f64, Vec<f64>);
+/// One weighted solve: estimate, unit covariance `(YᵀWY)⁺`, condition numbers of the
+/// identified directions (unscaled, column-scaled), σ used, dropped directions.
+struct WeightedSolution {
+    x: DVector<f64>,
+    cov_unit: DMatrix<f64>,
+    cond: f64,
+    cond_s: f64,
+    sigma: Vec<f64>,
+    dropped: Vec<DroppedDirection>,
+}
 
 fn solve_weighted(
     ne: &NormalEquations,
     sigma: &[f64],
     opt: &IdentifyOptions,
+    prior: &[f64],
     name: &dyn Fn(usize) -> String,
 ) -> Result<WeightedSolution, IdentifyError> {
     let p = ne.n_params;
@@ -374,56 +419,117 @@ fn solve_weighted(
         h += ata * w;
         g.axpy(w, aty, 1.0);
     }
-    // Column equilibration.
+    // Column equilibration; a zero column keeps scale 1 (its direction has eigenvalue 0
+    // and is dropped below).
     let d: Vec<f64> = (0..p).map(|i| h[(i, i)].sqrt()).collect();
     let dmax = d.iter().cloned().fold(0.0, f64::max);
-    let zero: Vec<String> = (0..p)
-        .filter(|&i| d[i].is_nan() || d[i] <= 1e-150 * dmax.max(1e-300))
-        .map(name)
+    let zero: Vec<bool> = (0..p)
+        .map(|i| d[i].is_nan() || d[i] <= 1e-150 * dmax.max(1e-300))
         .collect();
-    if !zero.is_empty() {
-        return Err(IdentifyError::ZeroColumns(zero));
-    }
+    let d: Vec<f64> = (0..p).map(|i| if zero[i] { 1.0 } else { d[i] }).collect();
     let mut hs = h.clone();
     for r in 0..p {
         for c in 0..p {
-            hs[(r, c)] /= d[r] * d[c];
+            hs[(r, c)] = if zero[r] || zero[c] {
+                0.0
+            } else {
+                hs[(r, c)] / (d[r] * d[c])
+            };
         }
     }
+    let gs = DVector::from_iterator(p, (0..p).map(|i| if zero[i] { 0.0 } else { g[i] / d[i] }));
     let eig = hs.clone().symmetric_eigen();
     let lmax = eig.eigenvalues.max();
     let lmin = eig.eigenvalues.min();
-    let cond_s = (lmax / lmin.max(0.0)).sqrt();
     let tol2 = opt.rank_tolerance * opt.rank_tolerance;
-    let chol = (lmin > tol2 * lmax)
-        .then(|| hs.clone().cholesky())
-        .flatten();
-    let Some(chol) = chol else {
-        let mut directions = Vec::new();
-        for k in 0..p {
-            if eig.eigenvalues[k] <= (tol2 * lmax).max(lmin) {
-                let v = eig.eigenvectors.column(k);
-                let mut terms: Vec<(String, f64)> = (0..p)
-                    .filter(|&i| v[i].abs() > 0.05)
-                    .map(|i| (name(i), v[i]))
-                    .collect();
-                terms.sort_by(|a, b| b.1.abs().total_cmp(&a.1.abs()));
-                directions.push(terms);
-            }
-        }
-        return Err(IdentifyError::RankDeficient {
-            condition_number: cond_s,
-            directions,
+    let cut = tol2 * lmax;
+    let full_rank = !zero.iter().any(|&z| z) && lmin > cut;
+    let chol = full_rank.then(|| hs.clone().cholesky()).flatten();
+    if let Some(chol) = chol {
+        // Everything identified: the plain solve (bit for bit the solve without prior).
+        let cond_s = (lmax / lmin.max(0.0)).sqrt();
+        let ev = h.clone().symmetric_eigen().eigenvalues;
+        let cond = (ev.max() / ev.min().max(0.0)).sqrt();
+        let xs = chol.solve(&gs);
+        let x = DVector::from_iterator(p, (0..p).map(|i| xs[i] / d[i]));
+        let hinv_s = chol.inverse();
+        let cov_unit = DMatrix::from_fn(p, p, |r, c| hinv_s[(r, c)] / (d[r] * d[c]));
+        return Ok(WeightedSolution {
+            x,
+            cov_unit,
+            cond,
+            cond_s,
+            sigma: sigma.to_vec(),
+            dropped: Vec::new(),
         });
-    };
-    let ev = h.clone().symmetric_eigen().eigenvalues;
-    let cond = (ev.max() / ev.min().max(0.0)).sqrt();
-    let gs = DVector::from_iterator(p, (0..p).map(|i| g[i] / d[i]));
-    let xs = chol.solve(&gs);
+    }
+    // Truncated solve around the prior: xs = xs0 + Σ_kept v (vᵀ(gs − Hs xs0)) / λ.
+    let xs0 = DVector::from_iterator(p, (0..p).map(|i| prior[i] * d[i]));
+    let r = &gs - &hs * &xs0;
+    let mut xs = xs0;
+    let mut cov_s = DMatrix::<f64>::zeros(p, p);
+    let mut dropped = Vec::new();
+    let mut lmin_kept = f64::INFINITY;
+    for k in 0..p {
+        let l = eig.eigenvalues[k];
+        let v = eig.eigenvectors.column(k);
+        if l > cut && lmax > 0.0 {
+            xs.axpy(v.dot(&r) / l, &v, 1.0);
+            cov_s.ger(1.0 / l, &v, &v, 1.0);
+            lmin_kept = lmin_kept.min(l);
+        } else {
+            let mut terms: Vec<(String, f64)> = (0..p)
+                .filter(|&i| v[i].abs() > 0.05)
+                .map(|i| (name(i), v[i]))
+                .collect();
+            terms.sort_by(|a, b| b.1.abs().total_cmp(&a.1.abs()));
+            let rel = if lmax > 0.0 {
+                (l.max(0.0) / lmax).sqrt()
+            } else {
+                0.0
+            };
+            dropped.push((rel, terms));
+        }
+    }
+    dropped.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let dropped = dropped
+        .into_iter()
+        .map(|(relative_singular_value, parameters)| DroppedDirection {
+            relative_singular_value,
+            parameters,
+        })
+        .collect();
     let x = DVector::from_iterator(p, (0..p).map(|i| xs[i] / d[i]));
-    let hinv_s = chol.inverse();
-    let cov = DMatrix::from_fn(p, p, |r, c| hinv_s[(r, c)] / (d[r] * d[c]));
-    Ok((x, cov, cond, cond_s, sigma.to_vec()))
+    let cov_unit = DMatrix::from_fn(p, p, |r, c| cov_s[(r, c)] / (d[r] * d[c]));
+    let cond_s = if lmin_kept.is_finite() {
+        (lmax / lmin_kept).sqrt()
+    } else {
+        1.0
+    };
+    // Unscaled condition number over the same share of the spectrum.
+    let ev = h.clone().symmetric_eigen().eigenvalues;
+    let kept = p - dropped_count(&eig.eigenvalues, cut, lmax);
+    let mut sorted: Vec<f64> = ev.iter().copied().collect();
+    sorted.sort_by(|a, b| b.total_cmp(a));
+    let cond = match (
+        sorted.first(),
+        kept.checked_sub(1).and_then(|k| sorted.get(k)),
+    ) {
+        (Some(&hi), Some(&lo)) if lo > 0.0 => (hi / lo).sqrt(),
+        _ => 1.0,
+    };
+    Ok(WeightedSolution {
+        x,
+        cov_unit,
+        cond,
+        cond_s,
+        sigma: sigma.to_vec(),
+        dropped,
+    })
+}
+
+fn dropped_count(ev: &DVector<f64>, cut: f64, lmax: f64) -> usize {
+    ev.iter().filter(|&&l| !(l > cut && lmax > 0.0)).count()
 }
 
 /// Per-joint error statistics of a prediction against measurements.

@@ -192,6 +192,42 @@ pub struct ModelFile {
     pub errors: Vec<ErrorReport>,
     /// Preprocessing settings, as JSON.
     pub preprocessing: serde_json::Value,
+    /// The parameter combinations the identification data could not identify: they
+    /// keep the prior's values ([`ModelFile::prior`]); absent in older files.
+    #[serde(default)]
+    pub dropped_directions: Vec<crate::DroppedDirection>,
+    /// What the dropped directions keep (e.g. the robot description's nominal
+    /// parameters); absent in older files.
+    #[serde(default)]
+    pub prior: String,
+    /// Per modelled joint, the states the identification data covered; absent in older
+    /// files (then nothing is bounded by them).
+    #[serde(default)]
+    pub identification_ranges: Vec<JointRanges>,
+}
+
+/// The `[min, max]` of one modelled joint's state over the identification data.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct JointRanges {
+    /// Joint name.
+    pub joint: String,
+    /// Angle [rad].
+    pub q_rad: [f64; 2],
+    /// Speed [rad/s].
+    pub qd_rad_s: [f64; 2],
+    /// Acceleration [rad/s²].
+    pub qdd_rad_s2: [f64; 2],
+}
+
+impl JointRanges {
+    /// The robot crate's form.
+    pub fn to_robot(&self) -> robot::IdentifiedRanges {
+        robot::IdentifiedRanges {
+            q_rad: self.q_rad,
+            qd_rad_s: self.qd_rad_s,
+            qdd_rad_s2: self.qdd_rad_s2,
+        }
+    }
 }
 
 impl ModelFile {
@@ -326,6 +362,17 @@ mod tests {
             validation_logs: vec![],
             errors: vec![],
             preprocessing: serde_json::Value::Null,
+            dropped_directions: vec![crate::DroppedDirection {
+                relative_singular_value: 1e-9,
+                parameters: vec![("b2 = fq1".into(), 0.8), ("b1 = fv1".into(), -0.6)],
+            }],
+            prior: "nominal".into(),
+            identification_ranges: vec![JointRanges {
+                joint: "j1".into(),
+                q_rad: [-1.0, 2.0],
+                qd_rad_s: [-0.5, 0.5],
+                qdd_rad_s2: [-3.0, 3.0],
+            }],
         }
     }
 

@@ -152,17 +152,39 @@ fn noisy_data_estimates_within_three_std_and_wls_finds_noise_levels() {
 }
 
 #[test]
-fn zero_and_dependent_columns_are_named() {
+fn zero_and_dependent_columns_are_dropped_and_named() {
+    // A zero column (fv1) keeps the prior's value; everything else is recovered.
     let mut ne = NormalEquations::new(2, 10);
     for (q, qd, qdd) in states(500, 5) {
         let mut y = regressor(q, qd, qdd);
         y[6] = 0.0; // fv1 column zero
         ne.add_sample(&y, &torque(&y));
     }
-    let e = solve(&mut ne, &names(), &IdentifyOptions::default()).unwrap_err();
-    assert_eq!(e, IdentifyError::ZeroColumns(vec!["fv1".into()]));
-    assert!(e.to_string().contains("fv1"));
+    let mut prior = vec![0.0; 10];
+    prior[6] = 0.25;
+    let opt = IdentifyOptions {
+        prior: Some(prior.clone()),
+        ..Default::default()
+    };
+    let id = solve(&mut ne, &names(), &opt).unwrap();
+    assert_eq!(id.dropped.len(), 1, "{:?}", id.dropped);
+    let d = &id.dropped[0];
+    assert_eq!(d.parameters.len(), 1, "{d}");
+    assert!(
+        d.parameters[0].0 == "fv1" && d.parameters[0].1.abs() > 0.999,
+        "{d}"
+    );
+    assert!(d.relative_singular_value < 1e-6, "{d}");
+    assert!((id.values[6] - 0.25).abs() < 1e-9, "{}", id.values[6]);
+    for i in (0..10).filter(|&i| i != 6) {
+        assert!(
+            (id.values[i] - THETA[i]).abs() < 1e-6 * (1.0 + THETA[i].abs()),
+            "{i}"
+        );
+    }
 
+    // Two columns proportional (fc2 = 2·ZZ2 on every row): their difference is dropped,
+    // named by both, and the sum the data holds is kept: the torques are reproduced.
     let mut ne = NormalEquations::new(2, 10);
     for (q, qd, qdd) in states(500, 5) {
         let mut y = regressor(q, qd, qdd);
@@ -170,14 +192,27 @@ fn zero_and_dependent_columns_are_named() {
         y[19] = 2.0 * y[11];
         ne.add_sample(&y, &torque(&y));
     }
-    let e = solve(&mut ne, &names(), &IdentifyOptions::default()).unwrap_err();
-    let IdentifyError::RankDeficient { directions, .. } = &e else {
-        panic!("{e}")
-    };
-    assert_eq!(directions.len(), 1);
-    let named: Vec<&str> = directions[0].iter().map(|(n, _)| n.as_str()).collect();
-    assert_eq!(named.len(), 2, "{e}");
-    assert!(named.contains(&"ZZ2") && named.contains(&"fc2"), "{e}");
+    let id = solve(&mut ne, &names(), &IdentifyOptions::default()).unwrap();
+    assert_eq!(id.dropped.len(), 1, "{:?}", id.dropped);
+    let named: Vec<&str> = id.dropped[0]
+        .parameters
+        .iter()
+        .map(|(n, _)| n.as_str())
+        .collect();
+    assert_eq!(named.len(), 2, "{}", id.dropped[0]);
+    assert!(
+        named.contains(&"ZZ2") && named.contains(&"fc2"),
+        "{}",
+        id.dropped[0]
+    );
+    let kept = |v: &[f64]| v[1] + 2.0 * v[9];
+    assert!(
+        (kept(&id.values) - kept(&THETA)).abs() < 1e-6,
+        "{:?}",
+        id.values
+    );
+    assert!(id.rms_nm.iter().all(|r| *r < 1e-6), "{:?}", id.rms_nm);
+    assert!(id.condition_number_scaled.is_finite() && id.condition_number.is_finite());
 }
 
 #[test]

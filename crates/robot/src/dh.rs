@@ -540,5 +540,6 @@ pub(super) fn parse(text: &str, file: &Path) -> Result<Robot, RobotError> {
         gravity: Vector3::from(parsed.gravity),
         joints,
         terms,
+        identified_ranges: Vec::new(),
     })
 }

@@ -627,6 +627,21 @@ pub struct Robot {
     pub joints: Vec<Joint>,
     /// Terms modelled besides the rigid body.
     pub terms: ModelTerms,
+    /// Per modelled joint (output order), the states identification saw; empty: not
+    /// recorded (a nominal model). The firmware model continues its extended friction
+    /// terms linearly beyond the recorded speeds.
+    pub identified_ranges: Vec<IdentifiedRanges>,
+}
+
+/// The `[min, max]` of one modelled joint's state over the identification data.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct IdentifiedRanges {
+    /// Angle [rad].
+    pub q_rad: [f64; 2],
+    /// Speed [rad/s].
+    pub qd_rad_s: [f64; 2],
+    /// Acceleration [rad/s^2].
+    pub qdd_rad_s2: [f64; 2],
 }
 
 /// Largest |offset| of a joint origin or link frame in a robot description [m].

@@ -786,6 +786,7 @@ pub(super) fn parse(
             gravity,
             joints,
             terms: ModelTerms::default(),
+            identified_ranges: Vec::new(),
         },
         chain_links: Some((
             model.links[base].name.clone(),

@@ -16,6 +16,16 @@ use nalgebra::{DVector, Matrix3, Vector3};
 /// Why a firmware model could not be built.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum FirmwareModelError {
+    /// An identified range whose minimum is above its maximum.
+    #[error("joint `{joint}`: identified range [{min}, {max}] is empty")]
+    Range {
+        /// Joint name.
+        joint: String,
+        /// Its minimum.
+        min: f64,
+        /// Its maximum.
+        max: f64,
+    },
     /// `N` differs from the robot's number of modelled joints.
     #[error("the firmware model has {expected} joints but the robot models {actual}")]
     JointCount {
@@ -145,6 +155,24 @@ pub fn build_firmware_model<const N: usize>(
             *f = term(JointParameter::Stribeck(k))?;
         }
         joints[r].quadratic_nm_s2_rad2 = term(JointParameter::Quadratic)?;
+        if let Some(g) = robot.identified_ranges.get(r) {
+            let name = &robot.joints[ji].name;
+            let range = |v: [f64; 2]| -> Result<[f32; 2], FirmwareModelError> {
+                let out = [f32_checked(name, v[0])?, f32_checked(name, v[1])?];
+                if out[0] <= out[1] {
+                    Ok(out)
+                } else {
+                    Err(FirmwareModelError::Range {
+                        joint: name.clone(),
+                        min: v[0],
+                        max: v[1],
+                    })
+                }
+            };
+            joints[r].q_range_rad = range(g.q_rad)?;
+            joints[r].qd_range_rad_s = range(g.qd_rad_s)?;
+            joints[r].qdd_range_rad_s2 = range(g.qdd_rad_s2)?;
+        }
     }
     let g = robot.gravity;
     Ok(RigidBodyModel {
