@@ -144,6 +144,24 @@ pub fn host_features() -> Vec<Record> {
     out
 }
 
+/// The host's computation of the `monitor` suite (`firmware::monitor`: the do-no-harm
+/// monitor's output and gain along a walk, then its scores), function `m<k>`, index and
+/// input = the case.
+pub fn host_monitor() -> Vec<Record> {
+    let mut out = Vec::with_capacity(golden::MONITOR_CASES * golden::MONITOR_VALUES);
+    for case in 0..golden::MONITOR_CASES {
+        for (k, v) in golden::monitor_output(case).iter().enumerate() {
+            out.push(Record::new(
+                &format!("m{k}"),
+                case,
+                case as u32,
+                v.to_bits(),
+            ));
+        }
+    }
+    out
+}
+
 /// The host's computation of the `lstm` suite: the golden network streamed step by step.
 pub fn host_lstm() -> Vec<Record> {
     let mut out = Vec::with_capacity(golden::LSTM_STEPS * golden::LSTM_O);
@@ -211,6 +229,7 @@ pub fn check_report(report: &str) -> Result<Vec<SuiteCheck>> {
         ("cells", host_cells()),
         ("dynamics", host_dynamics()),
         ("features", host_features()),
+        ("monitor", host_monitor()),
         ("lstm", host_lstm()),
     ];
     for g in GoldenModel::ALL {

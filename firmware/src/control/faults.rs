@@ -53,10 +53,13 @@ impl FaultFlags {
     /// The joint's state is outside its training envelope (`crate::envelope`): the
     /// learned share of the feedforward is faded by a weight below 1.
     pub const ENVELOPE_OUTSIDE: Self = Self(1 << 16);
+    /// The do-no-harm monitor (`crate::monitor`) holds the compensation's gain below 1:
+    /// over its window the measured torque showed the compensation doing harm.
+    pub const COMPENSATION_FADED: Self = Self(1 << 17);
 
     /// Every flag with its name, in bit order (new flags take the next bit and an
     /// entry here).
-    pub const NAMED: [(Self, &'static str); 17] = [
+    pub const NAMED: [(Self, &'static str); 18] = [
         (Self::STATE_REJECTED, "STATE_REJECTED"),
         (Self::STATE_STALE, "STATE_STALE"),
         (Self::STATE_OUT_OF_ORDER, "STATE_OUT_OF_ORDER"),
@@ -74,6 +77,7 @@ impl FaultFlags {
         (Self::VOLTAGE_LIMITED, "VOLTAGE_LIMITED"),
         (Self::REFERENCE_INVALID, "REFERENCE_INVALID"),
         (Self::ENVELOPE_OUTSIDE, "ENVELOPE_OUTSIDE"),
+        (Self::COMPENSATION_FADED, "COMPENSATION_FADED"),
     ];
 
     /// The raw bits.
