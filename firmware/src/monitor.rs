@@ -166,7 +166,11 @@ impl DoNoHarmMonitor {
                 self.gain += d;
                 self.tracking = false;
             } else {
-                self.gain += if d > 0.0 { self.max_step } else { -self.max_step };
+                self.gain += if d > 0.0 {
+                    self.max_step
+                } else {
+                    -self.max_step
+                };
             }
         }
         self.gain = if self.gain.is_finite() {
@@ -316,11 +320,23 @@ mod tests {
         assert_eq!(off.step(1.0, 5.0, -100.0), 5.0);
         // Settings that cannot run: off.
         for bad in [
-            MonitorConfig { window_s: f32::NAN, ..ON },
-            MonitorConfig { window_s: 0.01, ..ON },
+            MonitorConfig {
+                window_s: f32::NAN,
+                ..ON
+            },
+            MonitorConfig {
+                window_s: 0.01,
+                ..ON
+            },
             MonitorConfig { fade_s: 0.0, ..ON },
-            MonitorConfig { hysteresis: 1.0, ..ON },
-            MonitorConfig { hysteresis: f32::NAN, ..ON },
+            MonitorConfig {
+                hysteresis: 1.0,
+                ..ON
+            },
+            MonitorConfig {
+                hysteresis: f32::NAN,
+                ..ON
+            },
         ] {
             assert!(!DoNoHarmMonitor::new(bad, 100.0).is_on(), "{bad:?}");
         }
@@ -338,7 +354,11 @@ mod tests {
         // Huge values cannot make the statistics non-finite or the gain leave [0, 1].
         for _ in 0..10 {
             let out = m.step(0.0, 3.0e38, -3.0e38);
-            assert!((0.0..=1.0).contains(&m.gain()) && out.is_finite(), "{}", m.gain());
+            assert!(
+                (0.0..=1.0).contains(&m.gain()) && out.is_finite(),
+                "{}",
+                m.gain()
+            );
         }
         let (a, b) = m.scores_nm2();
         assert!(a.is_finite() && b.is_finite());

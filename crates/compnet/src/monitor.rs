@@ -101,7 +101,11 @@ mod tests {
         let faded = monitor(&t, 2, &base, &bad, ON).unwrap();
         // The model alone is 1 N·m off, the bad compensation 3; faded within the
         // first second and a half, the whole run is close to the model.
-        assert!(rms(&faded.torque_nm) < 1.2 * rms(&base), "{}", rms(&faded.torque_nm));
+        assert!(
+            rms(&faded.torque_nm) < 1.2 * rms(&base),
+            "{}",
+            rms(&faded.torque_nm)
+        );
         assert!(faded.faded_share(0..n) > 0.9);
         assert_eq!(*faded.gain.last().unwrap(), 0.0);
         // Lengths that do not match the table are an error naming it.

@@ -254,7 +254,10 @@ impl JointProfile {
             (gain(a.max_correction_nm), "max_adaptation_nm"),
             (gain(mo.window_s), "monitor_window_s"),
             (pos(mo.fade_s), "monitor_fade_s"),
-            (mo.hysteresis >= 0.0 && mo.hysteresis < 1.0, "monitor_hysteresis"),
+            (
+                mo.hysteresis >= 0.0 && mo.hysteresis < 1.0,
+                "monitor_hysteresis",
+            ),
         ];
         let mut k = 0;
         while k < checks.len() {

@@ -164,9 +164,7 @@ pub fn run(a: EvaluateArgs) -> Result<()> {
             None => vec![None; rows.len()],
         };
         let monitored = match monitor {
-            Some(cfg) => {
-                eval::monitored_rms(&pred, &spec, (table, scored), &s, adaptation, cfg)?
-            }
+            Some(cfg) => eval::monitored_rms(&pred, &spec, (table, scored), &s, adaptation, cfg)?,
             None => vec![None; rows.len()],
         };
         if let (0, Some(dir)) = (i, &a.figures) {
