@@ -25,7 +25,9 @@
 # NETS (names from the table below, space separated; default all),
 # FIRST_STAGE_ARGS (default `--coulomb-smoothing-rad-s 0.02 --friction-model extended`),
 # ADAPT_TIME_CONSTANT_S (2) and ADAPT_MAX_NM (10): the drive's online friction adaptation,
-# SCORE_CUTOFF_HZ (5): the low-pass of the second scoring, CARGO_TARGET_DIR.
+# SCORE_CUTOFF_HZ (5): the low-pass of the second scoring, MONITOR_WINDOW_S (2; 0 turns
+# it off): the window of the drive's do-no-harm monitor run after every network (and after
+# the adaptation) against the model alone (`monitored` figures), CARGO_TARGET_DIR.
 set -euo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
 usage="usage: ur10e_compensation.sh DATASET_DIR OUT_DIR"
@@ -38,6 +40,9 @@ joints="${JOINTS:-1,2,3,4,5,6}"
 adapt_time_constant_s="${ADAPT_TIME_CONSTANT_S:-2}"
 adapt_max_nm="${ADAPT_MAX_NM:-10}"
 score_cutoff_hz="${SCORE_CUTOFF_HZ:-5}"
+monitor_window_s="${MONITOR_WINDOW_S:-2}"
+monitor=()
+[ "$monitor_window_s" = 0 ] || monitor=(--monitor-window-s "$monitor_window_s")
 epochs="${EPOCHS:-60}"
 read -r -a first_stage_args <<< "${FIRST_STAGE_ARGS:---coulomb-smoothing-rad-s 0.02 --friction-model extended}"
 # name preset dataset-folder paper-output: the paper's presets over the paper model (as
@@ -161,14 +166,14 @@ for spec in "${all_nets[@]}"; do
         "$ME" evaluate --model "lstm_$tag.safetensors" --data "$dir/$r.csv" --preset "$preset" \
           "${output[@]}" --joints "$g" --baseline-data "$(train_list "$dir")" \
           --adapt-time-constant-s "$adapt_time_constant_s" --adapt-max-nm "$adapt_max_nm" \
-          "${score[@]}" --report "eval/${tag}_$r$suffix.json" > "eval/${tag}_$r$suffix.txt"
+          "${score[@]}" "${monitor[@]}" --report "eval/${tag}_$r$suffix.json" > "eval/${tag}_$r$suffix.txt"
       done
     done
   done
 done
 
 NETS_RUN="${nets_run[*]}" EVALUATED="${evaluated[*]}" JOINT_LIST="$joints" \
-  ADAPT_T="$adapt_time_constant_s" ADAPT_MAX="$adapt_max_nm" SCORE_HZ="$score_cutoff_hz" python3 - << 'EOF'
+  ADAPT_T="$adapt_time_constant_s" ADAPT_MAX="$adapt_max_nm" SCORE_HZ="$score_cutoff_hz" MONITOR_WINDOW="$monitor_window_s" python3 - << 'EOF'
 import csv, json, math, os, re
 
 nets = os.environ["NETS_RUN"].split()
@@ -209,6 +214,10 @@ def adapted(name, run, j, key, suffix=""):
     return (outputs(name, run, suffix).get(j, {}).get("adapted") or {}).get(key)
 
 
+def monitored(name, run, j, key, suffix=""):
+    return (outputs(name, run, suffix).get(j, {}).get("monitored") or {}).get(key)
+
+
 def first(names, run, j, key, suffix=""):
     for n in names:
         v = outputs(n, run, suffix).get(j, {}).get(key)
@@ -232,6 +241,13 @@ def scored(run, j, suffix):
             "baseline_rms_nm": next((v for n in same_step if (v := adapted(n, run, j, "baseline_rms_nm", suffix)) is not None), None),
             "compensated_rms_nm": {n: adapted(n, run, j, "compensated_rms_nm", suffix) for n in nets},
         },
+        # After the drive's do-no-harm monitor against the model alone (none: not run).
+        "monitored": {
+            "compensated_rms_nm": {n: monitored(n, run, j, "compensated_rms_nm", suffix) for n in nets},
+            "faded_share": {n: monitored(n, run, j, "faded_share", suffix) for n in nets},
+            "adapted_compensated_rms_nm": {n: monitored(n, run, j, "adapted_compensated_rms_nm", suffix) for n in nets},
+            "adapted_faded_share": {n: monitored(n, run, j, "adapted_faded_share", suffix) for n in nets},
+        },
     }
 
 
@@ -250,6 +266,7 @@ summary = {
         "max_correction_nm": float(os.environ["ADAPT_MAX"]),
     },
     "score_cutoff_hz": float(os.environ["SCORE_HZ"]),
+    "monitor_window_s": float(os.environ["MONITOR_WINDOW"]),
     "runs": {},
 }
 for run in runs:
@@ -267,6 +284,7 @@ for run in runs:
             "persistence_rms_nm": first(["paper", "paper_first_stage"], run, j, "rms_persistence"),
             "moving_samples": paper[j][1],
             "adapted": scored(run, j, "")["adapted"],
+            "monitored": scored(run, j, "")["monitored"],
             "low_passed": scored(run, j, "_lp"),
         }
     summary["runs"][run] = {"samples": samples, "joints": per_joint}
@@ -304,6 +322,16 @@ table(
     f"Scored against the torque low-passed at {summary['score_cutoff_hz']} Hz, adapted (`low_passed.adapted`; model = paper model, not adapted):",
     lambda x: [x["low_passed"]["model_rms_nm"], x["low_passed"]["adapted"]["first_stage_rms_nm"], x["low_passed"]["adapted"]["baseline_rms_nm"]]
     + [x["low_passed"]["adapted"]["compensated_rms_nm"][n] for n in nets],
+)
+table(
+    "After the drive's do-no-harm monitor (`monitored`; model = paper model, first stage and baseline not monitored):",
+    lambda x: [x["model_rms_nm"], x["first_stage_rms_nm"], x["baseline_rms_nm"]]
+    + [x["monitored"]["compensated_rms_nm"][n] for n in nets],
+)
+table(
+    "The same, adapted then monitored (`monitored.adapted_compensated_rms_nm`; model, first stage, baseline adapted):",
+    lambda x: [x["adapted"]["model_rms_nm"], x["adapted"]["first_stage_rms_nm"], x["adapted"]["baseline_rms_nm"]]
+    + [x["monitored"]["adapted_compensated_rms_nm"][n] for n in nets],
 )
 EOF
 python3 -c 'import json; print("training time [s]:", json.load(open("summary.json"))["train_seconds"])'

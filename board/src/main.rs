@@ -198,7 +198,10 @@ mod app {
             .with_envelope(compiled::ENVELOPE);
         let mut compensator = match plan.compensator {
             Some(config) => match Compensator::<JOINTS, _, _>::new(config, model(), lstm) {
-                Ok(c) => Some(c.with_adaptation(plan.adaptation)),
+                Ok(c) => Some(
+                    c.with_adaptation(plan.adaptation)
+                        .with_monitor(plan.monitor),
+                ),
                 Err(_) => cortex_m::asm::udf(),
             },
             None => None,

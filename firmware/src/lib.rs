@@ -5,7 +5,7 @@
 //! `host-tests` proves the results are bit-identical on both. The modules in data-flow
 //! order: numerics (`math`, `dsp`), the rigid-body model (`dynamics`), the drive's
 //! features (`features`), the training envelope (`envelope`), the network (`nn`), the online friction adaptation
-//! (`adaptation`), the compiled-in model (`model`), the
+//! (`adaptation`), the do-no-harm monitor (`monitor`), the compiled-in model (`model`), the
 //! control loop (`control`), the encoder driver (`drivers`) and logging (`log`).
 #![cfg_attr(not(test), no_std)]
 #![deny(unsafe_code)]
@@ -25,4 +25,5 @@ pub mod features;
 pub mod log;
 pub mod math;
 pub mod model;
+pub mod monitor;
 pub mod nn;

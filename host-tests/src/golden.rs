@@ -151,18 +151,26 @@ pub fn host_envelope() -> Vec<Record> {
     let mut out = Vec::new();
     for case in 0..golden::ENVELOPE_CASES {
         for (k, v) in golden::envelope_output(case).iter().enumerate() {
-            out.push(Record::new(
-                &format!("e{k}"),
-                case,
-                case as u32,
-                v.to_bits(),
-            ));
+            out.push(Record::new(&format!("e{k}"), case, case as u32, v.to_bits()));
         }
     }
     golden::envelope_stream(|t, y, w| {
         out.push(Record::new("ey", t, t as u32, y.to_bits()));
         out.push(Record::new("ew", t, t as u32, w.to_bits()));
     });
+    out
+}
+
+/// The host's computation of the `monitor` suite (`firmware::monitor`: the do-no-harm
+/// monitor's output and gain along a walk, then its scores), function `m<k>`, index and
+/// input = the case.
+pub fn host_monitor() -> Vec<Record> {
+    let mut out = Vec::with_capacity(golden::MONITOR_CASES * golden::MONITOR_VALUES);
+    for case in 0..golden::MONITOR_CASES {
+        for (k, v) in golden::monitor_output(case).iter().enumerate() {
+            out.push(Record::new(&format!("m{k}"), case, case as u32, v.to_bits()));
+        }
+    }
     out
 }
 
@@ -234,6 +242,7 @@ pub fn check_report(report: &str) -> Result<Vec<SuiteCheck>> {
         ("dynamics", host_dynamics()),
         ("features", host_features()),
         ("envelope", host_envelope()),
+        ("monitor", host_monitor()),
         ("lstm", host_lstm()),
     ];
     for g in GoldenModel::ALL {

@@ -537,3 +537,69 @@ fn a_broken_memory_layout_is_refused_naming_file_line_and_field() {
     );
     assert!(fw_export::layout_ram_bytes("FLASH : ORIGIN = 0, LENGTH = 4M").is_err());
 }
+
+#[test]
+fn the_gate_refuses_empty_header_only_one_row_and_still_gate_data() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let out = dir.path().join("model.rs");
+    let (m, run) = gate_case(dir.path());
+    let mut a = args(out.clone(), Precision::Int16);
+    a.dims = vec![DRIVE_INPUTS_PER_JOINT, 4, 4, 1];
+    a.preset = "drive".into();
+    a.joints = vec![4];
+    a.model = Some(dir.path().join("trained.safetensors"));
+    let text = std::fs::read_to_string(&run).unwrap();
+    let mut lines = text.lines();
+    let header = lines.next().unwrap().to_string();
+    let first_row = lines.next().unwrap().to_string();
+    let cases = [
+        ("empty.csv", String::new()),
+        ("header_only.csv", format!("{header}\n")),
+        ("one_row.csv", format!("{header}\n{first_row}\n")),
+    ];
+    for (name, body) in cases {
+        let path = dir.path().join(name);
+        std::fs::write(&path, body).unwrap();
+        // Alone, or beside a good run: refused, naming the file, nothing written.
+        for gate in [vec![path.clone()], vec![run.clone(), path.clone()]] {
+            a.gate_data = gate;
+            for allow_worse in [false, true] {
+                a.allow_worse = allow_worse;
+                let err = model_export::cmd::export::export(&m, &a).unwrap_err();
+                let msg = format!("{err:#}");
+                assert!(msg.contains(name), "{name}: {msg}");
+                assert!(
+                    !out.exists(),
+                    "{name}: a refused export left {}",
+                    out.display()
+                );
+            }
+        }
+    }
+    // A run where joint 4 is held (|qd| below the threshold): refused, naming the joint.
+    let held: String = std::iter::once(header.clone())
+        .chain(text.lines().skip(1).map(|l| {
+            let mut f: Vec<String> = l.split(',').map(String::from).collect();
+            let qd = header.split(',').position(|c| c == "qd_j4").unwrap();
+            f[qd] = "0.001".into();
+            f.join(",")
+        }))
+        .collect::<Vec<_>>()
+        .join("\n");
+    let path = dir.path().join("held.csv");
+    std::fs::write(&path, held + "\n").unwrap();
+    a.gate_data = vec![path];
+    a.allow_worse = true;
+    let msg = format!(
+        "{:#}",
+        model_export::cmd::export::export(&m, &a).unwrap_err()
+    );
+    assert!(msg.contains("joint 4 moves"), "{msg}");
+    assert!(msg.contains("0.05 rad/s"), "{msg}");
+    assert!(!out.exists());
+    // The moving run passes the data checks (the seeded network is then judged worse,
+    // exported here with --allow-worse).
+    a.gate_data = vec![run];
+    model_export::cmd::export::export(&m, &a).expect("moving gate data is accepted");
+    assert!(out.exists());
+}

@@ -14,6 +14,7 @@ use firmware::dynamics::{JointModel, RigidBodyModel};
 use firmware::envelope::{self, JointEnvelope, Range};
 use firmware::features;
 use firmware::math;
+use firmware::monitor;
 use firmware::nn::format::InputActivation;
 use firmware::nn::reference::{Lstm, LstmState};
 
@@ -371,6 +372,65 @@ pub fn feature_output(case: usize) -> [f32; FEATURE_VALUES] {
     let p = p + features::PRESLIDING_ELEMENTS;
     out[p] = correction;
     out[p + 1..].copy_from_slice(&a.levels_nm());
+    out
+}
+
+/// Cases of the `monitor` suite.
+pub const MONITOR_CASES: usize = 200;
+
+/// Ticks of the do-no-harm monitor's walk in each `monitor` case.
+pub const MONITOR_TICKS: u32 = 256;
+
+/// Values per case of the `monitor` suite: the monitor's output torque and gain after
+/// every 32nd tick of the walk, then its two windowed scores at the end.
+pub const MONITOR_VALUES: usize = 2 * (MONITOR_TICKS as usize / 32) + 2;
+
+/// The `monitor` suite's case: the do-no-harm monitor (`firmware::monitor`; window
+/// 10-60 ms, fade 5-25 ms, hysteresis 0-0.2 at 1 kHz) over [`MONITOR_TICKS`] ticks of
+/// model torques in [-50, 50) N*m, compensations in [-5, 5) N*m and measured torques
+/// near the model, the full compensation or neither (the case picks which, so that the
+/// gain fades, returns and holds), every eleventh one NaN and every 97th candidate
+/// infinite: the output torque and gain at every 32nd tick, then the scores.
+pub fn monitor_output(case: usize) -> [f32; MONITOR_VALUES] {
+    let seed = 0x0D0E_0000u32 ^ (case as u32).wrapping_mul(7);
+    let r = |k: u32| 2.0 * unit(hash(seed + k)) - 1.0;
+    let config = monitor::MonitorConfig {
+        window_s: 0.035 + 0.025 * r(0),
+        fade_s: 0.015 + 0.01 * r(1),
+        hysteresis: 0.1 + 0.1 * r(2),
+    };
+    let mut m = monitor::DoNoHarmMonitor::new(config, 1000.0);
+    let mut out = [0.0; MONITOR_VALUES];
+    let mut measured = f32::NAN;
+    for k in 0..MONITOR_TICKS {
+        let base = 50.0 * r(10 + 3 * k);
+        let comp = 5.0 * r(11 + 3 * k);
+        let full = if k % 97 == 96 {
+            f32::INFINITY
+        } else {
+            base + comp
+        };
+        let y = m.step(base, full, measured);
+        // Which candidate the joint follows changes every 64 ticks, per case.
+        let truth = match (case as u32 + k / 64) % 3 {
+            0 => base,
+            1 => base + comp,
+            _ => base - comp,
+        };
+        measured = if k % 11 == 10 {
+            f32::NAN
+        } else {
+            truth + 0.5 * r(12 + 3 * k)
+        };
+        if k % 32 == 31 {
+            let i = 2 * (k as usize / 32);
+            out[i] = y;
+            out[i + 1] = m.gain();
+        }
+    }
+    let (a, b) = m.scores_nm2();
+    out[MONITOR_VALUES - 2] = a;
+    out[MONITOR_VALUES - 1] = b;
     out
 }
 

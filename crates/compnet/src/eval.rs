@@ -5,6 +5,7 @@ use super::data::{FeatureSpec, Sequence, Table};
 use super::model::LstmModel;
 use anyhow::{Result, bail};
 use firmware::adaptation::AdaptationConfig;
+use firmware::monitor::MonitorConfig;
 use serde::{Deserialize, Serialize};
 
 /// Figures for one output (one joint).
@@ -111,6 +112,100 @@ pub struct ReportRow {
     /// its learned share (`firmware::envelope`; 0 for a network without one).
     #[serde(default)]
     pub outside_envelope_share: f64,
+    /// The network's prediction followed by the drive's do-no-harm monitor (`None`: not
+    /// asked for, or the output is not a joint's measured torque).
+    #[serde(default)]
+    pub monitored: Option<MonitoredRms>,
+}
+
+/// RMS [N·m] of the network's prediction after the do-no-harm monitor
+/// ([`crate::monitor`]), which compares it with the identified model alone, on the same
+/// rows and against the same torque.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct MonitoredRms {
+    /// The network's prediction, monitored.
+    pub compensated_rms_nm: f64,
+    /// Share of the rows where the monitor's gain was below 1.
+    pub faded_share: f64,
+    /// The network's prediction followed by the adaptation, then monitored (`None`: no
+    /// adaptation asked for).
+    pub adapted_compensated_rms_nm: Option<f64>,
+    /// Share of the rows where the adapted prediction's gain was below 1.
+    pub adapted_faded_share: Option<f64>,
+}
+
+impl MonitoredRms {
+    /// Every number (checked finite before a report is written).
+    pub fn figures(&self) -> impl Iterator<Item = f64> + '_ {
+        [self.compensated_rms_nm, self.faded_share]
+            .into_iter()
+            .chain(self.adapted_compensated_rms_nm)
+            .chain(self.adapted_faded_share)
+    }
+}
+
+/// Per output of `spec`: the network's predictions `pred` over `seq` followed by the
+/// do-no-harm monitor `config` against the model alone (and, with `adaptation`, the
+/// same after the adaptation, as the drive chains them), learning from `table`'s
+/// measured torque and scored against `scored`'s; `None` for outputs that are not a
+/// joint's measured torque.
+pub fn monitored_rms(
+    pred: &[Vec<f32>],
+    spec: &FeatureSpec,
+    (table, scored): (&Table, &Table),
+    seq: &Sequence,
+    adaptation_config: Option<AdaptationConfig>,
+    config: MonitorConfig,
+) -> Result<Vec<Option<MonitoredRms>>> {
+    if pred.len() != seq.len() {
+        bail!("{} predictions for {} steps", pred.len(), seq.len());
+    }
+    let rows = table.len();
+    let mut out = Vec::new();
+    for (k, t) in spec.targets.iter().enumerate() {
+        let Some(j) = target_joint(spec, k) else {
+            out.push(None);
+            continue;
+        };
+        if seq.len() + t.shift > rows {
+            bail!(
+                "{}: {} steps shifted by {} exceed the table's {rows} rows",
+                table.path.display(),
+                seq.len(),
+                t.shift
+            );
+        }
+        let per_row = |value: &dyn Fn(usize) -> f64| -> Vec<f64> {
+            let mut v = vec![f64::NAN; rows];
+            for r in 0..seq.len() {
+                v[r + t.shift] = value(r) + seq.offset[r][k] as f64;
+            }
+            v
+        };
+        let scored = scored.column(&format!("tau_meas_j{j}"))?;
+        let span = t.shift..t.shift + seq.len();
+        let base = per_row(&|r| seq.model_only[r][k] as f64);
+        let full = per_row(&|r| pred[r][k] as f64);
+        let run = |full: &[f64]| -> Result<(f64, f64)> {
+            let m = crate::monitor::monitor(table, j, &base, full, config)?;
+            Ok((
+                adaptation::rms_nm(scored, &m.torque_nm, span.clone()).unwrap_or(0.0),
+                m.faded_share(span.clone()),
+            ))
+        };
+        let (compensated_rms_nm, faded_share) = run(&full)?;
+        let adapted = match adaptation_config {
+            Some(cfg) => Some(run(&adaptation::adapt(table, j, &full, cfg)?)?),
+            None => None,
+        };
+        out.push(Some(MonitoredRms {
+            compensated_rms_nm,
+            faded_share,
+            adapted_compensated_rms_nm: adapted.map(|a| a.0),
+            adapted_faded_share: adapted.map(|a| a.1),
+        }));
+    }
+    Ok(out)
 }
 
 /// RMS [N·m] of each prediction followed by the online friction adaptation

@@ -12,6 +12,7 @@ pub mod fused_net;
 pub mod gemm;
 pub mod io;
 pub mod model;
+pub mod monitor;
 pub mod onnx;
 pub mod plot;
 pub mod report;

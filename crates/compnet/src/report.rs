@@ -93,6 +93,20 @@ pub struct EvaluationReport {
     /// (`None`: as logged).
     #[serde(default)]
     pub score_cutoff_hz: Option<f64>,
+    /// The do-no-harm monitor the `monitored` figures ran, when asked for.
+    #[serde(default)]
+    pub monitor: Option<MonitorRef>,
+}
+
+/// The do-no-harm monitor's settings in a report (`firmware::monitor::MonitorConfig`).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct MonitorRef {
+    /// Window (time constant of the scores) [s].
+    pub window_s: f32,
+    /// Time of a full fade of the gain [s].
+    pub fade_s: f32,
+    /// Hysteresis of the gain.
+    pub hysteresis: f32,
 }
 
 /// The online friction adaptation's settings in a report.

@@ -1634,6 +1634,13 @@ fn write_profiles(s: &mut String, profiles: &[firmware::control::JointProfile]) 
             f32_lit(p.adaptation.time_constant_s),
             f32_lit(p.adaptation.max_correction_nm)
         );
+        let _ = writeln!(
+            s,
+            "        monitor: firmware::monitor::MonitorConfig {{ window_s: {}, fade_s: {}, hysteresis: {} }},",
+            f32_lit(p.monitor.window_s),
+            f32_lit(p.monitor.fade_s),
+            f32_lit(p.monitor.hysteresis)
+        );
         let _ = writeln!(s, "    }},");
     }
     let _ = writeln!(s, "];");

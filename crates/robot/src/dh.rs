@@ -115,6 +115,9 @@ struct ProfileToml {
     bus_baud: Option<u32>,
     adaptation_time_constant_s: Option<f64>,
     max_adaptation_nm: Option<f64>,
+    monitor_window_s: Option<f64>,
+    monitor_fade_s: Option<f64>,
+    monitor_hysteresis: Option<f64>,
 }
 
 #[derive(Debug, Clone, Copy, Deserialize)]
@@ -202,6 +205,9 @@ impl ProfileToml {
             self.adaptation_time_constant_s,
         );
         set(&mut p.adaptation.max_correction_nm, self.max_adaptation_nm);
+        set(&mut p.monitor.window_s, self.monitor_window_s);
+        set(&mut p.monitor.fade_s, self.monitor_fade_s);
+        set(&mut p.monitor.hysteresis, self.monitor_hysteresis);
         p
     }
 }

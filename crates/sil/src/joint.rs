@@ -224,6 +224,7 @@ impl<const J: usize, M: TorquePredictor<J>, L: TorquePredictor<J>> SimulatedJoin
             drive,
             compensator,
             adaptation,
+            monitor,
         } = plan_startup(
             block,
             joint_indices,
@@ -241,11 +242,15 @@ impl<const J: usize, M: TorquePredictor<J>, L: TorquePredictor<J>> SimulatedJoin
                 // adaptation alone would be one).
                 let stages =
                     <M as TorquePredictor<J>>::PRESENT || <L as TorquePredictor<J>>::PRESENT;
-                Some(c.with_adaptation(if stages {
-                    adaptation
-                } else {
-                    AdaptationConfig::OFF
-                }))
+                // The profile's do-no-harm monitor after every stage, as on the board.
+                Some(
+                    c.with_adaptation(if stages {
+                        adaptation
+                    } else {
+                        AdaptationConfig::OFF
+                    })
+                    .with_monitor(monitor),
+                )
             }
             _ => None,
         };
@@ -439,6 +444,9 @@ pub struct JointRun {
     /// Compensator ticks outside the training envelope (`ENVELOPE_OUTSIDE`: the learned
     /// share faded).
     pub outside_envelope_ticks: u64,
+    /// Compensator ticks whose do-no-harm monitor held the compensation's gain below 1
+    /// (`COMPENSATION_FADED`).
+    pub faded_ticks: u64,
     /// The joint the board was configured for, or why its block was refused.
     pub startup: Result<JointSlot, JointConfigFault>,
     /// PWM periods simulated.
@@ -488,6 +496,7 @@ where
     let mut faults = [FaultFlags::NONE; J];
     let mut sources = [[0u64; 3]; J];
     let mut outside = [0u64; J];
+    let mut faded = [0u64; J];
     let mut t = 0.0f64;
     for k in 0..n {
         let t_tick = k as f64 / pwm_hz;
@@ -525,6 +534,9 @@ where
             faults[j] |= step.faults;
             if step.source.is_some() && step.faults.contains(FaultFlags::ENVELOPE_OUTSIDE) {
                 outside[j] += 1;
+            }
+            if step.source.is_some() && step.faults.contains(FaultFlags::COMPENSATION_FADED) {
+                faded[j] += 1;
             }
             if let Some(s) = step.source {
                 sources[j][match s {
@@ -569,6 +581,7 @@ where
             faults: faults[j],
             source_ticks: sources[j],
             outside_envelope_ticks: outside[j],
+            faded_ticks: faded[j],
             startup: joints[j].startup,
             pwm_ticks: n,
         })

@@ -305,6 +305,10 @@ pub struct WristJointReport {
     /// faded, `ENVELOPE_OUTSIDE`).
     #[serde(default)]
     pub outside_envelope_share: f64,
+    /// Share of the compensator ticks whose do-no-harm monitor held the compensation's
+    /// gain below 1 (`COMPENSATION_FADED`; 0 with the monitor off).
+    #[serde(default)]
+    pub faded_share: f64,
     /// Why the board's configuration block was refused (it then runs without
     /// feedforward and sends no state frames); absent when it was accepted.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -494,6 +498,8 @@ where
         fault_bits: runs[k].faults.bits(),
         source_ticks: runs[k].source_ticks,
         outside_envelope_share: runs[k].outside_envelope_ticks as f64
+            / runs[k].source_ticks.iter().sum::<u64>().max(1) as f64,
+        faded_share: runs[k].faded_ticks as f64
             / runs[k].source_ticks.iter().sum::<u64>().max(1) as f64,
         startup_fault: runs[k].startup.err().map(|f| format!("{f:?}")),
     }))

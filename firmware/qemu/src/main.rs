@@ -118,6 +118,23 @@ fn main() -> ! {
     out.line(format_args!("@end features"));
 
     out.line(format_args!(
+        "@suite monitor {}",
+        golden::MONITOR_CASES * golden::MONITOR_VALUES
+    ));
+    for case in 0..golden::MONITOR_CASES {
+        for (k, v) in golden::monitor_output(case).iter().enumerate() {
+            out.line(format_args!(
+                "m{} {} {:08x} {:08x}",
+                k,
+                case,
+                case as u32,
+                v.to_bits()
+            ));
+        }
+    }
+    out.line(format_args!("@end monitor"));
+
+    out.line(format_args!(
         "@suite dynamics {}",
         golden::DYNAMICS_CASES * golden::DYNAMICS_JOINTS
     ));

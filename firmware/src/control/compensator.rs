@@ -3,13 +3,15 @@
 //! [`TorquePredictor`] trait, with a fallback chain LSTM -> model only -> zero,
 //! a watchdog on the other joints' states, rate and magnitude limits, and a
 //! warm-up after every reset; optionally the online friction adaptation
-//! ([`crate::adaptation`]) after both stages. The result is a q-current held until
+//! ([`crate::adaptation`]) after both stages, and the do-no-harm monitor
+//! ([`crate::monitor`]) after all of them. The result is a q-current held until
 //! the next tick.
 
 use super::faults::FaultFlags;
 use super::message::{JointState, JointStateMessage, SEQUENCE_WINDOW, StateLimits};
 use crate::adaptation::{self, ADAPTED_LEVELS, AdaptationConfig, FrictionAdaptation};
 use crate::features::RestDirection;
+use crate::monitor::{DoNoHarmMonitor, MonitorConfig};
 
 /// What a predictor sees: every modelled joint's latest valid state (this joint's
 /// own from its sensors, the others' from the state bus) and, for the LSTM stage,
@@ -172,6 +174,9 @@ pub struct CompensatorOutput {
     /// The training-envelope weight of the learned share this tick, in [0, 1]
     /// (`crate::envelope`; 1 when the learned stage did not run).
     pub envelope_weight: f32,
+    /// The do-no-harm monitor's gain on the compensation beyond the model this tick, in
+    /// [0, 1] (`crate::monitor`; 1 when it is off or the model stage did not run).
+    pub monitor_gain: f32,
 }
 
 /// What the compensator knows of one other joint's sender: its latest accepted
@@ -302,6 +307,7 @@ pub struct Compensator<const J: usize, M, L> {
     lstm_off_ticks: u16,
     inputs_were_ok: bool,
     adaptation: FrictionAdaptation,
+    monitor: DoNoHarmMonitor,
     rest: RestDirection,
 }
 
@@ -331,6 +337,7 @@ impl<const J: usize, M: TorquePredictor<J>, L: TorquePredictor<J>> Compensator<J
             lstm_off_ticks: 0,
             inputs_were_ok: false,
             adaptation: FrictionAdaptation::new(AdaptationConfig::OFF, config.rate_hz),
+            monitor: DoNoHarmMonitor::new(MonitorConfig::OFF, config.rate_hz),
             rest: RestDirection::new(),
         })
     }
@@ -342,6 +349,19 @@ impl<const J: usize, M: TorquePredictor<J>, L: TorquePredictor<J>> Compensator<J
     pub fn with_adaptation(mut self, config: AdaptationConfig) -> Self {
         self.adaptation = FrictionAdaptation::new(config, self.config.rate_hz);
         self
+    }
+
+    /// The same compensator with the do-no-harm monitor ([`crate::monitor`]) after all
+    /// its stages: it scores the model alone against the full compensation on the torque
+    /// measured since each tick and fades the compensation's gain where it does harm.
+    pub fn with_monitor(mut self, config: MonitorConfig) -> Self {
+        self.monitor = DoNoHarmMonitor::new(config, self.config.rate_hz);
+        self
+    }
+
+    /// The do-no-harm monitor (its gain and scores).
+    pub fn monitor(&self) -> &DoNoHarmMonitor {
+        &self.monitor
     }
 
     /// The adaptation's learned levels (N*m): offset, Coulomb, held at rest (zero when
@@ -514,6 +534,7 @@ impl<const J: usize, M: TorquePredictor<J>, L: TorquePredictor<J>> Compensator<J
         let mut target = 0.0f32;
         let mut source = FeedforwardSource::Zero;
         let mut envelope_weight = 1.0f32;
+        let mut monitor_gain = 1.0f32;
         if inputs_ok {
             if !self.inputs_were_ok {
                 // The input stream was broken: restart the LSTM's state and blend
@@ -537,6 +558,7 @@ impl<const J: usize, M: TorquePredictor<J>, L: TorquePredictor<J>> Compensator<J
                 faults |= FaultFlags::MODEL_INVALID;
                 self.ff_blend_ticks = 0;
                 self.adaptation.restart();
+                self.monitor.restart();
             } else {
                 target = model;
                 source = FeedforwardSource::Model;
@@ -554,6 +576,13 @@ impl<const J: usize, M: TorquePredictor<J>, L: TorquePredictor<J>> Compensator<J
                 let qd = own.qd_ref_rad_s;
                 let x = adaptation::regressors(qd, self.rest.update(qd));
                 target += self.adaptation.step(x, target, own.tau_meas_nm);
+                // The monitor scores the model alone and the full compensation on the
+                // same measured torque and scales what lies beyond the model.
+                target = self.monitor.step(model, target, own.tau_meas_nm);
+                monitor_gain = self.monitor.gain();
+                if monitor_gain < 1.0 {
+                    faults |= FaultFlags::COMPENSATION_FADED;
+                }
                 // Blend the whole feedforward in after a fallback to zero.
                 let w = self.ff_blend_ticks as f32 / cfg.warmup_ticks as f32;
                 if self.ff_blend_ticks < cfg.warmup_ticks {
@@ -565,6 +594,7 @@ impl<const J: usize, M: TorquePredictor<J>, L: TorquePredictor<J>> Compensator<J
         } else {
             self.ff_blend_ticks = 0;
             self.adaptation.restart();
+            self.monitor.restart();
         }
         self.inputs_were_ok = inputs_ok;
 
@@ -599,6 +629,7 @@ impl<const J: usize, M: TorquePredictor<J>, L: TorquePredictor<J>> Compensator<J
             source,
             faults,
             envelope_weight,
+            monitor_gain,
         }
     }
 
@@ -826,6 +857,50 @@ mod tests {
         let o = c.tick(&state(3.0), 0);
         assert_eq!(o.envelope_weight, 1.0);
         assert!(!o.faults.contains(FaultFlags::ENVELOPE_OUTSIDE));
+    }
+
+    #[test]
+    fn the_monitor_fades_a_harmful_lstm_and_flags_it() {
+        // Model 2 q = 6 N*m at q = 3, the LSTM adds 1 N*m; the joint measures 5 N*m:
+        // the LSTM's correction is harmful and the monitor fades it to the model.
+        let cfg = MonitorConfig {
+            window_s: 0.05,
+            fade_s: 0.02,
+            hysteresis: 0.05,
+        };
+        let mut c = new().with_monitor(cfg);
+        let own = JointState {
+            q_ref_rad: 3.0,
+            tau_meas_nm: 5.0,
+            ..Default::default()
+        };
+        let first = tick_own(&mut c, 1, &own);
+        assert_eq!(first.monitor_gain, 1.0);
+        let mut last = first;
+        for k in 2..400 {
+            last = tick_own(&mut c, k, &own);
+        }
+        assert_eq!(last.monitor_gain, 0.0, "{last:?}");
+        assert!(last.faults.contains(FaultFlags::COMPENSATION_FADED));
+        assert!((last.torque_nm - 6.0).abs() < 1e-5, "{last:?}");
+        // Measured 7 N*m: the correction helps again and returns in full.
+        let good = JointState {
+            tau_meas_nm: 7.0,
+            ..own
+        };
+        for k in 400..800 {
+            last = tick_own(&mut c, k, &good);
+        }
+        assert_eq!(last.monitor_gain, 1.0, "{last:?}");
+        assert!(!last.faults.contains(FaultFlags::COMPENSATION_FADED));
+        assert!((last.torque_nm - 7.0).abs() < 1e-5, "{last:?}");
+        // Off (the default): gain 1 whatever is measured.
+        let mut off = new();
+        for k in 1..100 {
+            last = tick_own(&mut off, k, &own);
+        }
+        assert_eq!(last.monitor_gain, 1.0);
+        assert!((last.torque_nm - 7.0).abs() < 1e-5, "{last:?}");
     }
 
     #[test]

@@ -54,6 +54,9 @@ impl FaultFlags {
     /// The joint's state is outside its training envelope (`crate::envelope`): the
     /// learned share of the feedforward is faded by a weight below 1.
     pub const ENVELOPE_OUTSIDE: Self = Self(1 << 16);
+    /// The do-no-harm monitor (`crate::monitor`) holds the compensation's gain below 1:
+    /// over its window the measured torque showed the compensation doing harm.
+    pub const COMPENSATION_FADED: Self = Self(1 << 17);
     /// A state-bus frame failed its authentication (MAC, or a malformed frame): it
     /// was counted and dropped, never used.
     pub const FRAME_UNAUTHENTICATED: Self = Self(1 << 18);
@@ -64,7 +67,7 @@ impl FaultFlags {
 
     /// Every flag with its name, in bit order (new flags take the next bit and an
     /// entry here).
-    pub const NAMED: [(Self, &'static str); 19] = [
+    pub const NAMED: [(Self, &'static str); 20] = [
         (Self::STATE_REJECTED, "STATE_REJECTED"),
         (Self::STATE_STALE, "STATE_STALE"),
         (Self::STATE_OUT_OF_ORDER, "STATE_OUT_OF_ORDER"),
@@ -82,6 +85,7 @@ impl FaultFlags {
         (Self::VOLTAGE_LIMITED, "VOLTAGE_LIMITED"),
         (Self::REFERENCE_INVALID, "REFERENCE_INVALID"),
         (Self::ENVELOPE_OUTSIDE, "ENVELOPE_OUTSIDE"),
+        (Self::COMPENSATION_FADED, "COMPENSATION_FADED"),
         (Self::FRAME_UNAUTHENTICATED, "FRAME_UNAUTHENTICATED"),
         (Self::SENDER_SILENT, "SENDER_SILENT"),
     ];
@@ -178,10 +182,9 @@ mod tests {
             last = flag.bits();
             all |= flag.bits();
         }
-        // The first sixteen are the control loop's, none skipped; the state bus's
-        // are bits 18 and 19 (16 and 17 belong to the do-no-harm layer).
-        assert_eq!(all & 0xFFFF, 0xFFFF);
-        assert_eq!(all & (0b11 << 18), 0b11 << 18);
+        // The control loop's sixteen, the do-no-harm layer's two (16, 17) and the
+        // state bus's two (18, 19): none skipped.
+        assert_eq!(all, (1u32 << FaultFlags::NAMED.len()) - 1);
         let mut f = FaultFlags::NONE;
         f.insert(FaultFlags::STATE_STALE | FaultFlags::OVERCURRENT);
         assert!(f.contains(FaultFlags::STATE_STALE) && !f.contains(FaultFlags::LSTM_INVALID));

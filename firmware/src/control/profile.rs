@@ -14,6 +14,7 @@ use super::drive::DriveConfig;
 use super::foc::{CurrentLoopConfig, MotorParameters};
 use super::message::StateLimits;
 use crate::adaptation::AdaptationConfig;
+use crate::monitor::MonitorConfig;
 
 /// Everything one joint's drive and compensator need beyond the compiled-in model
 /// and the board's own constants (PWM rate, ADC scales).
@@ -65,6 +66,9 @@ pub struct JointProfile {
     /// The online friction adaptation after the model and LSTM stages
     /// ([`crate::adaptation`]; a zero time constant turns it off).
     pub adaptation: AdaptationConfig,
+    /// The online do-no-harm monitor after every other stage ([`crate::monitor`]; a
+    /// zero window turns it off).
+    pub monitor: MonitorConfig,
 }
 
 impl JointProfile {
@@ -121,6 +125,9 @@ impl JointProfile {
             time_constant_s: 0.0,
             max_correction_nm: 10.0,
         },
+        // Off unless a robot description gives a window; when on, a full fade takes
+        // 0.5 s and the gain holds within 0.05 of the window's best blend.
+        monitor: MonitorConfig::OFF,
     };
 
     /// Joint-side torque per A of motor q current, N*m/A (motor torque constant x
@@ -188,7 +195,8 @@ impl JointProfile {
         let c = &self.cascade;
         let s = &self.state_limits;
         let a = &self.adaptation;
-        let checks: [(bool, &'static str); 37] = [
+        let mo = &self.monitor;
+        let checks: [(bool, &'static str); 40] = [
             (m.pole_pairs >= 1, "pole_pairs"),
             (pos(m.phase_resistance_ohm), "phase_resistance_ohm"),
             (pos(m.phase_inductance_h), "phase_inductance_h"),
@@ -244,6 +252,12 @@ impl JointProfile {
             (self.bus_baud >= 1, "bus_baud"),
             (gain(a.time_constant_s), "adaptation_time_constant_s"),
             (gain(a.max_correction_nm), "max_adaptation_nm"),
+            (gain(mo.window_s), "monitor_window_s"),
+            (pos(mo.fade_s), "monitor_fade_s"),
+            (
+                mo.hysteresis >= 0.0 && mo.hysteresis < 1.0,
+                "monitor_hysteresis",
+            ),
         ];
         let mut k = 0;
         while k < checks.len() {

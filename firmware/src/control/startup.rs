@@ -27,6 +27,7 @@ use super::drive::DriveConfig;
 use super::message::crc16;
 use super::profile::JointProfile;
 use crate::adaptation::AdaptationConfig;
+use crate::monitor::MonitorConfig;
 
 /// The per-board configuration block: which robot joint this board drives.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -171,6 +172,9 @@ pub struct StartupPlan {
     /// The compensator's friction adaptation (`Compensator::with_adaptation`); off on
     /// a refusal.
     pub adaptation: AdaptationConfig,
+    /// The compensator's do-no-harm monitor (`Compensator::with_monitor`); off on a
+    /// refusal.
+    pub monitor: MonitorConfig,
 }
 
 /// The start-up decision: [`select_joint`], then the drive and compensator
@@ -191,6 +195,7 @@ pub fn plan_startup<const J: usize>(
                 drive: p.map(|p| p.drive_config(pwm_hz)),
                 compensator: p.map(|p| p.compensator_config(rate_hz, j.slot)),
                 adaptation: p.map_or(AdaptationConfig::OFF, |p| p.adaptation),
+                monitor: p.map_or(MonitorConfig::OFF, |p| p.monitor),
             }
         }
         Err(fault) => {
@@ -203,6 +208,7 @@ pub fn plan_startup<const J: usize>(
                 drive: shared,
                 compensator: None,
                 adaptation: AdaptationConfig::OFF,
+                monitor: MonitorConfig::OFF,
             }
         }
     }

@@ -46,6 +46,7 @@ pub const JOINT_PROFILES: [firmware::control::JointProfile; 3] = [
         max_torque_nm: 120.0, max_torque_rate_nm_s: 2000.0, max_lstm_correction_nm: 30.0, warmup_ticks: 10, lstm_retry_ticks: 50,
         feedforward_max_current_a: 12.0, bus_baud: 2000000,
         adaptation: firmware::adaptation::AdaptationConfig { time_constant_s: 0.0, max_correction_nm: 10.0 },
+        monitor: firmware::monitor::MonitorConfig { window_s: 0.0, fade_s: 0.5, hysteresis: 0.05 },
     },
     firmware::control::JointProfile {
         motor: firmware::control::MotorParameters { pole_pairs: 7, phase_resistance_ohm: 0.3, phase_inductance_h: 0.0003, flux_linkage_wb: 0.01 },
@@ -57,6 +58,7 @@ pub const JOINT_PROFILES: [firmware::control::JointProfile; 3] = [
         max_torque_nm: 120.0, max_torque_rate_nm_s: 2000.0, max_lstm_correction_nm: 30.0, warmup_ticks: 10, lstm_retry_ticks: 50,
         feedforward_max_current_a: 12.0, bus_baud: 2000000,
         adaptation: firmware::adaptation::AdaptationConfig { time_constant_s: 0.0, max_correction_nm: 10.0 },
+        monitor: firmware::monitor::MonitorConfig { window_s: 0.0, fade_s: 0.5, hysteresis: 0.05 },
     },
     firmware::control::JointProfile {
         motor: firmware::control::MotorParameters { pole_pairs: 7, phase_resistance_ohm: 0.3, phase_inductance_h: 0.0003, flux_linkage_wb: 0.01 },
@@ -68,6 +70,7 @@ pub const JOINT_PROFILES: [firmware::control::JointProfile; 3] = [
         max_torque_nm: 120.0, max_torque_rate_nm_s: 2000.0, max_lstm_correction_nm: 30.0, warmup_ticks: 10, lstm_retry_ticks: 50,
         feedforward_max_current_a: 12.0, bus_baud: 2000000,
         adaptation: firmware::adaptation::AdaptationConfig { time_constant_s: 0.0, max_correction_nm: 10.0 },
+        monitor: firmware::monitor::MonitorConfig { window_s: 0.0, fade_s: 0.5, hysteresis: 0.05 },
     },
 ];
 /// Training envelope of each output's joint (`firmware::envelope`): ranges of the

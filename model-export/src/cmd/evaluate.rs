@@ -3,9 +3,12 @@ use super::train::FeatureArgs;
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use compnet::data::{Sequence, Table};
-use compnet::report::{AdaptationRef, BaselineRef, EvaluatedRun, EvaluationReport, PaperRow};
+use compnet::report::{
+    AdaptationRef, BaselineRef, EvaluatedRun, EvaluationReport, MonitorRef, PaperRow,
+};
 use compnet::{adaptation, eval, io, plot};
 use firmware::adaptation::AdaptationConfig;
+use firmware::monitor::MonitorConfig;
 use std::path::{Path, PathBuf};
 
 /// `evaluate` options.
@@ -46,6 +49,17 @@ pub struct EvaluateArgs {
     /// the torque as logged.
     #[arg(long)]
     pub score_cutoff_hz: Option<f64>,
+    /// Also run the drive's do-no-harm monitor after the network (and after the
+    /// adaptation, when asked for), comparing it with the model alone over this window
+    /// [s] at each log's tick rate (`monitored` report fields).
+    #[arg(long)]
+    pub monitor_window_s: Option<f32>,
+    /// Time the monitor's gain takes to fade from 1 to 0 [s].
+    #[arg(long, default_value_t = 0.5)]
+    pub monitor_fade_s: f32,
+    /// Hysteresis of the monitor's gain, in [0, 1).
+    #[arg(long, default_value_t = 0.05)]
+    pub monitor_hysteresis: f32,
 }
 
 /// Runs `evaluate`.
@@ -112,6 +126,22 @@ pub fn run(a: EvaluateArgs) -> Result<()> {
             cfg.max_correction_nm
         );
     }
+    let monitor = a.monitor_window_s.map(|w| MonitorConfig {
+        window_s: w,
+        fade_s: a.monitor_fade_s,
+        hysteresis: a.monitor_hysteresis,
+    });
+    if let Some(cfg) = monitor
+        && cfg.per_tick(1.0e3).is_none()
+    {
+        bail!(
+            "--monitor-window-s {} / --monitor-fade-s {} / --monitor-hysteresis {}: the window \
+             and the fade must be finite and positive, the hysteresis in [0, 1)",
+            cfg.window_s,
+            cfg.fade_s,
+            cfg.hysteresis
+        );
+    }
     let mut reports = Vec::new();
     let mut figures = Vec::new();
     for (i, ((p, s), (table, scored))) in a
@@ -142,6 +172,10 @@ pub fn run(a: EvaluateArgs) -> Result<()> {
             }
             None => vec![None; rows.len()],
         };
+        let monitored = match monitor {
+            Some(cfg) => eval::monitored_rms(&pred, &spec, (table, scored), &s, adaptation, cfg)?,
+            None => vec![None; rows.len()],
+        };
         if let (0, Some(dir)) = (i, &a.figures) {
             for (name, svg) in plot::compensation_figures(&model, &s)? {
                 figures.push((dir.join(name), svg));
@@ -152,13 +186,17 @@ pub fn run(a: EvaluateArgs) -> Result<()> {
             .zip(base_rms)
             .zip(adapted)
             .zip(&outside)
+            .zip(monitored)
             .map(
-                |(((eval, baseline_rms_nm), adapted), &outside_envelope_share)| eval::ReportRow {
-                    eval,
-                    samples: s.len(),
-                    baseline_rms_nm,
-                    adapted,
-                    outside_envelope_share,
+                |((((eval, baseline_rms_nm), adapted), &outside_envelope_share), monitored)| {
+                    eval::ReportRow {
+                        eval,
+                        samples: s.len(),
+                        baseline_rms_nm,
+                        adapted,
+                        outside_envelope_share,
+                        monitored,
+                    }
                 },
             )
             .collect();
@@ -169,6 +207,7 @@ pub fn run(a: EvaluateArgs) -> Result<()> {
                     .figures()
                     .chain(r.baseline_rms_nm)
                     .chain(r.adapted.iter().flat_map(|a| a.figures()))
+                    .chain(r.monitored.iter().flat_map(|m| m.figures()))
             }),
         )?;
         let plain: Vec<eval::TargetEval> = rows.iter().map(|r| r.eval.clone()).collect();
@@ -190,6 +229,30 @@ pub fn run(a: EvaluateArgs) -> Result<()> {
             println!(
                 "outside the training envelope (learned share faded): {}",
                 shares.join(", ")
+            );
+        }
+        if monitor.is_some() {
+            let lines: Vec<String> = rows
+                .iter()
+                .filter_map(|r| {
+                    let m = r.monitored?;
+                    let adapted = match (m.adapted_compensated_rms_nm, m.adapted_faded_share) {
+                        (Some(v), Some(f)) => {
+                            format!("; adapted {v:.4} N m, faded {:.1} %", 100.0 * f)
+                        }
+                        _ => String::new(),
+                    };
+                    Some(format!(
+                        "| {} | {:.4} | {:.1} %{adapted} |",
+                        r.eval.name,
+                        m.compensated_rms_nm,
+                        100.0 * m.faded_share
+                    ))
+                })
+                .collect();
+            println!(
+                "After the do-no-harm monitor (RMS N m, share of rows faded):\n{}",
+                lines.join("\n")
             );
         }
         let paper = spec
@@ -238,6 +301,11 @@ pub fn run(a: EvaluateArgs) -> Result<()> {
                     max_correction_nm: c.max_correction_nm,
                 }),
                 score_cutoff_hz: a.score_cutoff_hz,
+                monitor: monitor.map(|c| MonitorRef {
+                    window_s: c.window_s,
+                    fade_s: c.fade_s,
+                    hysteresis: c.hysteresis,
+                }),
             })?,
         )),
         None => None,

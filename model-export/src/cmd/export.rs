@@ -128,9 +128,80 @@ fn envelope(m: &mut LstmModel, a: &ExportArgs) -> Result<()> {
     Ok(())
 }
 
+/// The gate's motion threshold: each compensated joint must move faster than this in
+/// the gate data, rad/s ...
+pub const GATE_MOVING_RAD_S: f64 = 0.05;
+/// ... for at least this long over all gate runs together, s: a gate run that barely
+/// moves a joint cannot show whether the network harms it.
+pub const GATE_MIN_MOVING_S: f64 = 1.0;
+
+/// Refuses gate data that cannot judge a network: a file without at least two data rows
+/// (empty, header only, one row) is an error naming it; per compensated joint (`qd_jN`),
+/// less than [`GATE_MIN_MOVING_S`] of motion faster than [`GATE_MOVING_RAD_S`] over all
+/// runs (each row counts as its run's median time step) is an error naming the joint.
+fn check_gate_data(a: &ExportArgs) -> Result<Vec<compnet::data::Table>> {
+    let mut tables = Vec::new();
+    for path in &a.gate_data {
+        let table = compnet::data::Table::read(path)
+            .with_context(|| format!("--gate-data {}", path.display()))?;
+        if table.len() < 2 {
+            bail!(
+                "--gate-data {}: {} data rows; the do-no-harm gate needs whole runs (at \
+                 least two rows, and motion on every compensated joint)",
+                path.display(),
+                table.len()
+            );
+        }
+        tables.push(table);
+    }
+    eprintln!(
+        "gate motion threshold: at least {GATE_MIN_MOVING_S} s faster than \
+         {GATE_MOVING_RAD_S} rad/s per compensated joint"
+    );
+    for &joint in &a.joints {
+        let mut moving_s = 0.0f64;
+        for table in &tables {
+            let qd = table
+                .column(&format!("qd_j{joint}"))
+                .with_context(|| format!("--gate-data {}", table.path.display()))?;
+            let t = table.column("time_s").ok();
+            let dt = t
+                .map(|t| {
+                    let t: Vec<f64> = t.iter().map(|&v| f64::from(v)).collect();
+                    logs::signal::median_step(&t)
+                })
+                .filter(|dt| dt.is_finite() && *dt > 0.0)
+                .with_context(|| {
+                    format!(
+                        "--gate-data {}: column `time_s` missing or not increasing",
+                        table.path.display()
+                    )
+                })?;
+            let rows = qd
+                .iter()
+                .filter(|v| f64::from(v.abs()) > GATE_MOVING_RAD_S)
+                .count();
+            moving_s += rows as f64 * dt;
+        }
+        eprintln!("gate data: joint {joint} moves {moving_s:.2} s");
+        if moving_s < GATE_MIN_MOVING_S {
+            bail!(
+                "--gate-data: joint {joint} moves faster than {GATE_MOVING_RAD_S} rad/s for \
+                 {moving_s:.2} s over all gate runs, less than the {GATE_MIN_MOVING_S} s the \
+                 do-no-harm gate needs to judge the network on it"
+            );
+        }
+    }
+    Ok(tables)
+}
+
 /// Per validation run (1-based, `--gate-data` order) and compensated joint: the model
-/// alone's and the compensated RMS [N*m] (f32 firmware step), for the do-no-harm gate.
-fn gate(m: &LstmModel, a: &ExportArgs) -> Result<Vec<(usize, usize, f64, f64)>> {
+/// alone's and the compensated RMS [N*m] (f32 firmware step), for the do-no-harm gate,
+/// and the linear friction baseline's fitted on the gate data itself (the best a linear
+/// friction correction could do there; `None` where it cannot be fitted), for the report.
+type GateRow = (usize, usize, f64, f64, Option<f64>);
+
+fn gate(m: &LstmModel, a: &ExportArgs) -> Result<Vec<GateRow>> {
     let spec = compnet::data::FeatureSpec::for_preset(&m.preset, &a.joints).with_context(|| {
         format!(
             "--gate-data needs a `paper`, `feedforward` or `drive` network (this one: `{}`)",
@@ -138,14 +209,30 @@ fn gate(m: &LstmModel, a: &ExportArgs) -> Result<Vec<(usize, usize, f64, f64)>> 
         )
     })?;
     spec.check_model(m)?;
+    let tables = check_gate_data(a)?;
+    let baseline = match compnet::baseline::fit(&tables, &a.joints) {
+        Ok(b) => Some(b),
+        Err(e) => {
+            eprintln!("note: no linear baseline on the gate data: {e:#}");
+            None
+        }
+    };
     let mut rows = Vec::new();
-    for (run, path) in a.gate_data.iter().enumerate() {
-        let table = compnet::data::Table::read(path)?;
+    for (run, (path, table)) in a.gate_data.iter().zip(&tables).enumerate() {
         let seq = spec
             .sequence(&table)
             .with_context(|| format!("{}", path.display()))?;
-        for (e, &joint) in compnet::eval::evaluate(m, &seq)?.iter().zip(&a.joints) {
-            rows.push((run + 1, joint, e.rms_before, e.rms_after));
+        let base = match &baseline {
+            Some(b) => compnet::eval::baseline_rms(&spec, table, seq.len(), b)?,
+            None => Vec::new(),
+        };
+        for (k, (e, &joint)) in compnet::eval::evaluate(m, &seq)?
+            .iter()
+            .zip(&a.joints)
+            .enumerate()
+        {
+            let b = base.get(k).copied().flatten();
+            rows.push((run + 1, joint, e.rms_before, e.rms_after, b));
         }
     }
     Ok(rows)
@@ -370,11 +457,14 @@ fn do_no_harm(m: &LstmModel, a: &ExportArgs) -> Result<String> {
     for (k, path) in a.gate_data.iter().enumerate() {
         eprintln!("gate run {}: {}", k + 1, path.display());
     }
-    let mut table = String::from("run | joint | model alone RMS N*m | compensated RMS N*m\n");
+    let mut table = String::from(
+        "run | joint | model alone RMS N*m | compensated RMS N*m | linear baseline RMS N*m\n",
+    );
     let mut worse = false;
-    for (run, joint, before, after) in &rows {
+    for (run, joint, before, after, baseline) in &rows {
         worse |= after.is_nan() || before.is_nan() || after > before;
-        table += &format!("{run} | {joint} | {before:.4} | {after:.4}\n");
+        let b = baseline.map_or("-".to_string(), |b| format!("{b:.4}"));
+        table += &format!("{run} | {joint} | {before:.4} | {after:.4} | {b}\n");
     }
     eprint!("do-no-harm gate:\n{table}");
     match (worse, a.allow_worse) {
