@@ -80,7 +80,7 @@ fn bag_error(dir: &Path, name: &str, bytes: &[u8], topic: &str) -> String {
     std::fs::write(&path, bytes).unwrap();
     let opts = BagOptions {
         topic: topic.into(),
-        drive_gains_nm_per_a: None,
+        ..BagOptions::default()
     };
     match rosbag::read_bag(&path, &opts, &names()) {
         Ok(l) => panic!("{name}: read {} samples", l.len()),

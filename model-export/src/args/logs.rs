@@ -155,6 +155,7 @@ impl LayoutArgs {
         BagOptions {
             topic: self.topic.clone(),
             drive_gains_nm_per_a: self.drive_gains.clone(),
+            ..BagOptions::default()
         }
     }
 }
