@@ -19,8 +19,12 @@ nanoseconds), so each reads back to the CSV's samples bit for bit:
 - `zero_stamps.mcap`: every header stamp zero (as some drivers leave it), the log time
   carrying the samples' times (`mcap-ros2-support`).
 
+It also writes the seeds of the rosbag2-folder and .db3 fuzz targets (small bags of 20
+messages, the same writers; a folder seed is framed as the fuzz target reads it: u32 LE
+length + metadata.yaml, then u32 LE length + bytes of each storage file):
+
     pip install mcap mcap-ros2-support rosbags
-    python3 scripts/make_ros2_fixtures.py crates/logs/tests/fixtures
+    python3 scripts/make_ros2_fixtures.py crates/logs/tests/fixtures fuzz/corpus
 """
 import csv
 import shutil
@@ -157,5 +161,33 @@ def main(out_dir: Path):
     shutil.rmtree(tmp)
 
 
+def frame(parts):
+    out = b""
+    for p in parts:
+        out += len(p).to_bytes(4, "little") + p
+    return out
+
+
+def fuzz_seeds(fixtures: Path, corpus: Path):
+    rows = samples(fixtures / "joint_states.csv")[:20]
+    tmp = Path(tempfile.mkdtemp())
+    (corpus / "db3").mkdir(parents=True, exist_ok=True)
+    (corpus / "rosbag2_folder").mkdir(parents=True, exist_ok=True)
+    rosbags_write(tmp / "db", ROBOT, rows, StoragePlugin.SQLITE3)
+    shutil.copy(tmp / "db" / "db.db3", corpus / "db3" / "default.db3")
+    # Split MCAP folder (UR names, read with the target's map) and a one-file sqlite3 folder.
+    for i, part in enumerate([rows[:10], rows[10:]]):
+        rosbags_write(tmp / f"p{i}", UR, part, StoragePlugin.MCAP)
+    meta = (tmp / "p0" / "metadata.yaml").read_text().replace(
+        "relative_file_paths:\n  - p0.mcap", "relative_file_paths:\n  - p0.mcap\n  - p1.mcap")
+    (corpus / "rosbag2_folder" / "split_mcap.bin").write_bytes(frame(
+        [meta.encode(), (tmp / "p0" / "p0.mcap").read_bytes(), (tmp / "p1" / "p1.mcap").read_bytes()]))
+    (corpus / "rosbag2_folder" / "sqlite3.bin").write_bytes(frame(
+        [(tmp / "db" / "metadata.yaml").read_bytes(), (tmp / "db" / "db.db3").read_bytes()]))
+    shutil.rmtree(tmp)
+
+
 if __name__ == "__main__":
     main(Path(sys.argv[1]))
+    if len(sys.argv) > 2:
+        fuzz_seeds(Path(sys.argv[1]), Path(sys.argv[2]))
