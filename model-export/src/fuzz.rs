@@ -320,9 +320,16 @@ pub fn wire_frame_target(data: &[u8]) {
 
 /// The joints the ROS 2 targets read (the default robot's, the UR driver's names mapped).
 fn bag_joint_names() -> Vec<String> {
-    ["shoulder_pan", "shoulder_lift", "elbow", "wrist_1", "wrist_2", "wrist_3"]
-        .map(String::from)
-        .to_vec()
+    [
+        "shoulder_pan",
+        "shoulder_lift",
+        "elbow",
+        "wrist_1",
+        "wrist_2",
+        "wrist_3",
+    ]
+    .map(String::from)
+    .to_vec()
 }
 
 /// Bag options of the ROS 2 targets: the UR driver's names mapped to the robot's.
@@ -341,7 +348,10 @@ fn bag_options(time_source: logs::TimeSource) -> logs::BagOptions {
 /// and strictly increasing, every value finite, every array one entry per sample.
 fn check_bag_log(raw: &logs::RawLog) {
     let n = raw.len();
-    assert!(n > 0 && raw.time_s[0] == 0.0, "a log not starting at time 0");
+    assert!(
+        n > 0 && raw.time_s[0] == 0.0,
+        "a log not starting at time 0"
+    );
     assert!(
         raw.time_s.windows(2).all(|w| w[1] > w[0]),
         "time not strictly increasing"

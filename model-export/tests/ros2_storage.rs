@@ -41,7 +41,15 @@ fn every_storage_identifies_like_the_csv() {
     let r = robot();
     let identify = |log: &str, extra: &[&str], out: &str| -> serde_json::Value {
         let o = dir.path().join(out);
-        let mut args = vec!["identify", "--robot", &r, "--lock", "1=0,2=0,3=0", "--log", log];
+        let mut args = vec![
+            "identify",
+            "--robot",
+            &r,
+            "--lock",
+            "1=0,2=0,3=0",
+            "--log",
+            log,
+        ];
         args.extend(extra);
         let os = o.display().to_string();
         args.extend(["-o", &os]);
@@ -84,14 +92,21 @@ fn refusals_exit_nonzero_name_the_file_and_write_nothing() {
     .unwrap();
     let noqd = noqd.display().to_string();
     let map_file = d.join("map.txt");
-    std::fs::write(&map_file, "shoulder_pan_joint=shoulder_pan\nshoulder_pan_joint=elbow\n").unwrap();
+    std::fs::write(
+        &map_file,
+        "shoulder_pan_joint=shoulder_pan\nshoulder_pan_joint=elbow\n",
+    )
+    .unwrap();
     let map_file = map_file.display().to_string();
     let cases: Vec<(Vec<String>, &str)> = vec![
         (
             vec![fixture("zero_stamps.mcap")],
             "zero_stamps.mcap, topic /joint_states, message 2, field header.stamp: stamps not strictly increasing",
         ),
-        (vec![flipped], "flipped.mcap, chunk 1: corrupt MCAP file: CRC"),
+        (
+            vec![flipped],
+            "flipped.mcap, chunk 1: corrupt MCAP file: CRC",
+        ),
         (
             vec![fixture("ur_split")],
             "ur_split, topic /joint_states, message 1, field name: no joint 'shoulder_pan'",
@@ -108,7 +123,14 @@ fn refusals_exit_nonzero_name_the_file_and_write_nothing() {
     let model = d.join("model.json");
     for (args, want) in cases {
         let o = std::process::Command::new(env!("CARGO_BIN_EXE_model-export"))
-            .args(["identify", "--robot", &robot(), "--lock", "1=0,2=0,3=0", "--log"])
+            .args([
+                "identify",
+                "--robot",
+                &robot(),
+                "--lock",
+                "1=0,2=0,3=0",
+                "--log",
+            ])
             .args(&args)
             .arg("-o")
             .arg(&model)

@@ -22,9 +22,9 @@
 //! field; a log read from a bag records that number where a CSV log records its line.
 
 use super::{LogError, RawLog, sha256_hex};
+use serde::Deserialize;
 use sha2::{Digest, Sha256};
 use std::borrow::Cow;
-use serde::Deserialize;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
@@ -99,12 +99,23 @@ pub fn parse_joint_map(text: &str) -> Result<Vec<(String, String)>, String> {
             .split_once('=')
             .map(|(a, b)| (a.trim(), b.trim()))
             .filter(|(a, b)| !a.is_empty() && !b.is_empty() && !b.contains('='))
-            .ok_or_else(|| format!("joint map entry {} '{entry}': expected BAG_NAME=ROBOT_NAME", i + 1))?;
+            .ok_or_else(|| {
+                format!(
+                    "joint map entry {} '{entry}': expected BAG_NAME=ROBOT_NAME",
+                    i + 1
+                )
+            })?;
         if out.iter().any(|(a, _)| a == from) {
-            return Err(format!("joint map entry {} '{entry}': '{from}' mapped twice", i + 1));
+            return Err(format!(
+                "joint map entry {} '{entry}': '{from}' mapped twice",
+                i + 1
+            ));
         }
         if out.iter().any(|(_, b)| b == to) {
-            return Err(format!("joint map entry {} '{entry}': two names mapped to '{to}'", i + 1));
+            return Err(format!(
+                "joint map entry {} '{entry}': two names mapped to '{to}'",
+                i + 1
+            ));
         }
         out.push((from.to_string(), to.to_string()));
     }
@@ -499,11 +510,9 @@ fn mcap_messages<'a>(
     tm: &mut TopicMessages<'a>,
 ) -> Result<(), LogError> {
     verify_mcap(path, bytes)?;
-    let stream = mcap::MessageStream::new_with_options(
-        bytes,
-        mcap::read::Options::ValidateChunkCrcs.into(),
-    )
-    .map_err(|e| LogError::new(path, None, None, format!("not an MCAP file: {e}")))?;
+    let stream =
+        mcap::MessageStream::new_with_options(bytes, mcap::read::Options::ValidateChunkCrcs.into())
+            .map_err(|e| LogError::new(path, None, None, format!("not an MCAP file: {e}")))?;
     let mut checked: Vec<u16> = Vec::new();
     for m in stream {
         let m = m.map_err(|e| {
@@ -592,7 +601,12 @@ fn db3_messages(
         ));
     }
     if bytes.len() >= i32::MAX as usize {
-        return Err(LogError::new(path, None, None, "larger than 2 GiB: not read"));
+        return Err(LogError::new(
+            path,
+            None,
+            None,
+            "larger than 2 GiB: not read",
+        ));
     }
     let mut db = Connection::open_in_memory_with_flags(
         OpenFlags::SQLITE_OPEN_READ_WRITE | OpenFlags::SQLITE_OPEN_NO_MUTEX,
@@ -621,7 +635,9 @@ fn db3_messages(
     }
     for id in ids {
         let mut st = db
-            .prepare("SELECT timestamp, data FROM messages WHERE topic_id = ?1 ORDER BY timestamp, id")
+            .prepare(
+                "SELECT timestamp, data FROM messages WHERE topic_id = ?1 ORDER BY timestamp, id",
+            )
             .map_err(sql)?;
         let mut rows = st.query([id]).map_err(sql)?;
         while let Some(r) = rows.next().map_err(sql)? {
@@ -674,7 +690,12 @@ fn assemble(
         LogError::new(file, None, Some(at), message)
     };
     if n == 0 {
-        return Err(err(path, None, None, "the robot has no joints to read".into()));
+        return Err(err(
+            path,
+            None,
+            None,
+            "the robot has no joints to read".into(),
+        ));
     }
     if let Some(g) = &opts.drive_gains_nm_per_a
         && g.len() != n
@@ -822,7 +843,11 @@ fn assemble(
                 Some(field.into()),
                 format!(
                     "{} not strictly increasing: {}.{:09} s after {}.{:09} s in message {pk}{hint}",
-                    if opts.time_source == TimeSource::Header { "stamps" } else { "times" },
+                    if opts.time_source == TimeSource::Header {
+                        "stamps"
+                    } else {
+                        "times"
+                    },
                     ns.div_euclid(1_000_000_000),
                     ns.rem_euclid(1_000_000_000),
                     p.div_euclid(1_000_000_000),
@@ -941,7 +966,11 @@ fn assemble(
         .max_by_key(|&s| streams[s].time_ns.len())
         .unwrap_or(0);
     let b = &streams[base];
-    let lo = used.iter().map(|&s| streams[s].time_ns[0]).max().unwrap_or(0);
+    let lo = used
+        .iter()
+        .map(|&s| streams[s].time_ns[0])
+        .max()
+        .unwrap_or(0);
     let hi = used
         .iter()
         .map(|&s| *streams[s].time_ns.last().unwrap_or(&0))
@@ -965,12 +994,14 @@ fn assemble(
         path: path.to_path_buf(),
         sha256,
         // Exact integer nanoseconds since the first kept time, then one rounding.
-        time_s: keep.iter().map(|&i| (b.time_ns[i] - t0) as f64 / 1e9).collect(),
+        time_s: keep
+            .iter()
+            .map(|&i| (b.time_ns[i] - t0) as f64 / 1e9)
+            .collect(),
         q_rad: vec![Vec::new(); n],
         qd_rad_s: has_qd.then(|| vec![Vec::new(); n]),
         qdd_rad_s2: None,
-        current_a: (has_effort && opts.drive_gains_nm_per_a.is_some())
-            .then(|| vec![Vec::new(); n]),
+        current_a: (has_effort && opts.drive_gains_nm_per_a.is_some()).then(|| vec![Vec::new(); n]),
         drive_gains_nm_per_a: opts.drive_gains_nm_per_a.clone(),
         torque_nm: has_effort.then(|| vec![Vec::new(); n]),
         lines: keep.iter().map(|&i| b.ks[i]).collect(),
@@ -1040,13 +1071,15 @@ fn assemble(
             b.time_ns.len() - keep.len()
         ));
         for (field, has) in [("velocity", has_qd), ("effort", has_effort)] {
-            if !has && used.iter().any(|&s| {
-                if field == "velocity" {
-                    streams[s].qd.is_some()
-                } else {
-                    streams[s].effort.is_some()
-                }
-            }) {
+            if !has
+                && used.iter().any(|&s| {
+                    if field == "velocity" {
+                        streams[s].qd.is_some()
+                    } else {
+                        streams[s].effort.is_some()
+                    }
+                })
+            {
                 notes.push(format!(
                     "{}: {field}[] dropped: empty in one of the merged publishers",
                     path.display()

@@ -115,13 +115,26 @@ fn broken_rosbag2_folders_are_refused_naming_the_file() {
         e.contains("metadata.yaml, rosbag2_bagfile_information.relative_file_paths[1]: '../ur_split_1.mcap' is not a path inside"),
         "{e}"
     );
-    let (_t, e) = edited_folder(|d| meta(d, "storage_identifier: mcap", "storage_identifier: cassette"));
+    let (_t, e) = edited_folder(|d| {
+        meta(
+            d,
+            "storage_identifier: mcap",
+            "storage_identifier: cassette",
+        )
+    });
     assert!(e.contains("storage 'cassette'"), "{e}");
     let (_t, e) = edited_folder(|d| meta(d, "relative_file_paths:", "relative_file_pathz:"));
-    assert!(e.contains("metadata.yaml") && e.contains("not a rosbag2 metadata file"), "{e}");
+    assert!(
+        e.contains("metadata.yaml") && e.contains("not a rosbag2 metadata file"),
+        "{e}"
+    );
     // The parts in the wrong order: time goes back at the second file's first message.
     let (_t, e) = edited_folder(|d| {
-        meta(d, "- ur_split_0.mcap\n  - ur_split_1.mcap", "- ur_split_1.mcap\n  - ur_split_0.mcap")
+        meta(
+            d,
+            "- ur_split_0.mcap\n  - ur_split_1.mcap",
+            "- ur_split_1.mcap\n  - ur_split_0.mcap",
+        )
     });
     assert!(
         e.contains("bag/ur_split_0.mcap, topic /joint_states, message 502, field header.stamp: stamps not strictly increasing"),
@@ -133,7 +146,10 @@ fn broken_rosbag2_folders_are_refused_naming_the_file() {
         let b = std::fs::read(&p).unwrap();
         std::fs::write(&p, &b[..b.len() - 100]).unwrap();
     });
-    assert!(e.contains("bag/ur_split_1.mcap: corrupt or truncated MCAP file"), "{e}");
+    assert!(
+        e.contains("bag/ur_split_1.mcap: corrupt or truncated MCAP file"),
+        "{e}"
+    );
 }
 
 /// The offset of the first chunk record's body in an MCAP file.
@@ -152,7 +168,11 @@ fn first_chunk_body(b: &[u8]) -> usize {
 #[test]
 fn a_flipped_byte_in_a_chunk_is_refused_or_changes_nothing() {
     let dir = tempfile::tempdir().unwrap();
-    for name in ["joint_states.mcap", "two_publishers.mcap", "zero_stamps.mcap"] {
+    for name in [
+        "joint_states.mcap",
+        "two_publishers.mcap",
+        "zero_stamps.mcap",
+    ] {
         let b = std::fs::read(fixture(name)).unwrap();
         let opts = BagOptions {
             time_source: if name == "zero_stamps.mcap" {
@@ -180,7 +200,9 @@ fn a_flipped_byte_in_a_chunk_is_refused_or_changes_nothing() {
             match read(&p, &opts) {
                 Ok(l) => {
                     assert!(
-                        l.time_s == good.time_s && l.q_rad == good.q_rad && l.torque_nm == good.torque_nm,
+                        l.time_s == good.time_s
+                            && l.q_rad == good.q_rad
+                            && l.torque_nm == good.torque_nm,
                         "{name}: byte {at} flipped, read with other values"
                     );
                     same += 1;
@@ -202,8 +224,9 @@ fn two_publishers_are_merged_by_joint_name_and_the_gripper_dropped() {
     assert_same_samples(&log);
     let notes = log.notes.join("\n");
     assert!(
-        notes.contains("dropped 500 messages of /joint_states naming no robot joint ([gripper_finger_joint]")
-            && notes.contains("merged 2 publishers of /joint_states by joint name")
+        notes.contains(
+            "dropped 500 messages of /joint_states naming no robot joint ([gripper_finger_joint]"
+        ) && notes.contains("merged 2 publishers of /joint_states by joint name")
             && notes.contains("0 of its samples outside their common time span dropped"),
         "{notes}"
     );
@@ -225,7 +248,9 @@ fn publishers_at_other_times_are_interpolated_onto_the_time_base() {
             let mut b = bags::joint_state(k);
             b.header.stamp.nanosec += 5_000_000;
             b.name.drain(..3);
-            b.position = (3..6).map(|j| 0.1 * j as f64 + 0.01 * k as f64 + 0.005).collect();
+            b.position = (3..6)
+                .map(|j| 0.1 * j as f64 + 0.01 * k as f64 + 0.005)
+                .collect();
             b.velocity.drain(..3);
             b.effort.drain(..3);
             msgs.push(bags::cdr(&b));
@@ -241,10 +266,17 @@ fn publishers_at_other_times_are_interpolated_onto_the_time_base() {
         assert!((t - 0.01 * i as f64).abs() < 1e-12);
         // Joint 4 moves 0.01 rad per 10 ms: interpolated exactly (up to rounding).
         let k = i + 1;
-        assert!((log.q_rad[3][i] - (0.3 + 0.01 * k as f64)).abs() < 1e-12, "{i}");
+        assert!(
+            (log.q_rad[3][i] - (0.3 + 0.01 * k as f64)).abs() < 1e-12,
+            "{i}"
+        );
         assert_eq!(log.q_rad[0][i], 0.01 * k as f64);
     }
-    assert!(log.notes[0].contains("2 of its samples outside their common time span dropped"), "{:?}", log.notes);
+    assert!(
+        log.notes[0].contains("2 of its samples outside their common time span dropped"),
+        "{:?}",
+        log.notes
+    );
     // The same joint from two publishers is ambiguous.
     let twice = [bags::cdr(&bags::joint_state(0)), {
         let mut m = bags::joint_state(1);
@@ -256,7 +288,10 @@ fn publishers_at_other_times_are_interpolated_onto_the_time_base() {
     }];
     std::fs::write(&p, bag("/joint_states", &twice)).unwrap();
     let e = read(&p, &BagOptions::default()).unwrap_err();
-    assert!(e.contains("message 2, field name: joint 'shoulder_pan' in two sets of names"), "{e}");
+    assert!(
+        e.contains("message 2, field name: joint 'shoulder_pan' in two sets of names"),
+        "{e}"
+    );
 }
 
 #[test]
@@ -279,7 +314,11 @@ fn zero_stamps_need_the_log_time() {
 fn logged_velocities_asked_of_a_bag_without_them_are_refused() {
     let dir = tempfile::tempdir().unwrap();
     let p = dir.path().join("noqd.mcap");
-    std::fs::write(&p, bag("/joint_states", &messages(|_, m| m.velocity.clear()))).unwrap();
+    std::fs::write(
+        &p,
+        bag("/joint_states", &messages(|_, m| m.velocity.clear())),
+    )
+    .unwrap();
     let raw = read(&p, &BagOptions::default()).unwrap();
     assert!(raw.qd_rad_s.is_none());
     let pre = PreprocessOptions {
@@ -289,5 +328,14 @@ fn logged_velocities_asked_of_a_bag_without_them_are_refused() {
     };
     let e = preprocess(&raw, &pre).unwrap_err().to_string();
     assert!(e.contains("noqd.mcap, velocity: logged velocities asked for (--use-logged-qd) but the log has none"), "{e}");
-    assert!(preprocess(&raw, &PreprocessOptions { use_logged_qd: false, ..pre }).is_ok());
+    assert!(
+        preprocess(
+            &raw,
+            &PreprocessOptions {
+                use_logged_qd: false,
+                ..pre
+            }
+        )
+        .is_ok()
+    );
 }

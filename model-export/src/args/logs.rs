@@ -3,8 +3,8 @@
 
 use clap::{Args, ValueEnum};
 use logs::{
-    BagOptions, ColumnRef, Effort, LogLayout, PreprocessOptions, TimeSource, UR10E_DRIVE_GAINS_NM_PER_A,
-    rosbag,
+    BagOptions, ColumnRef, Effort, LogLayout, PreprocessOptions, TimeSource,
+    UR10E_DRIVE_GAINS_NM_PER_A, rosbag,
 };
 
 /// Starting point for the column layout.
@@ -178,7 +178,9 @@ impl LayoutArgs {
                     .map_err(|e| anyhow::anyhow!("--joint-map {m}: cannot read: {e}"))?;
                 rosbag::parse_joint_map(&text).map_err(|e| anyhow::anyhow!("{m}: {e}"))?
             }
-            Some(m) => rosbag::parse_joint_map(m).map_err(|e| anyhow::anyhow!("--joint-map: {e}"))?,
+            Some(m) => {
+                rosbag::parse_joint_map(m).map_err(|e| anyhow::anyhow!("--joint-map: {e}"))?
+            }
         };
         Ok(BagOptions {
             topic: self.topic.clone(),
