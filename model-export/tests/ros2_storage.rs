@@ -32,7 +32,8 @@ fn stripped(path: &PathBuf, log: &str) -> serde_json::Value {
         l["path"] = "LOG".into();
         l["sha256"] = "HASH".into();
     }
-    v
+    // The error figures are labelled by the log's path.
+    serde_json::from_str(&v.to_string().replace(log, "LOG")).unwrap()
 }
 
 #[test]
