@@ -435,6 +435,7 @@ pub fn parse_bag_folder(
 /// Checks an MCAP file's chunk, data-section and summary CRCs and its structure,
 /// naming the chunk whose CRC fails.
 fn verify_mcap(path: &Path, bytes: &[u8]) -> Result<(), LogError> {
+    check_uncompressed_chunks(path, bytes)?;
     use mcap::sans_io::linear_reader::{LinearReadEvent, LinearReader, LinearReaderOptions};
     let mut reader = LinearReader::new_with_options(
         LinearReaderOptions::default()
@@ -483,6 +484,63 @@ fn verify_mcap(path: &Path, bytes: &[u8]) -> Result<(), LogError> {
                 ));
             }
         }
+    }
+    Ok(())
+}
+
+/// Checks that every record inside an uncompressed chunk ends inside the chunk (the
+/// `mcap` crate's reader does not, and underflows on such a file).
+fn check_uncompressed_chunks(path: &Path, bytes: &[u8]) -> Result<(), LogError> {
+    let u64_at = |b: &[u8], at: usize| -> Option<u64> {
+        Some(u64::from_le_bytes(b.get(at..at.checked_add(8)?)?.try_into().ok()?))
+    };
+    let mut at = MCAP_MAGIC.len();
+    let mut chunk = 0usize;
+    while let (Some(&op), Some(len)) = (bytes.get(at), u64_at(bytes, at + 1)) {
+        let Some(body) = usize::try_from(len)
+            .ok()
+            .and_then(|l| bytes.get(at + 9..(at + 9).checked_add(l)?))
+        else {
+            return Ok(()); // a truncated record: the reader names it
+        };
+        match op {
+            0x06 => {
+                chunk += 1;
+                let bad = || {
+                    LogError::new(
+                        path,
+                        None,
+                        Some(format!("chunk {chunk}")),
+                        "corrupt MCAP file: a record overruns its chunk",
+                    )
+                };
+                let clen = body
+                    .get(28..32)
+                    .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as usize)
+                    .ok_or_else(bad)?;
+                let rec_at = 32usize.checked_add(clen).ok_or_else(bad)?;
+                let rlen = u64_at(body, rec_at).ok_or_else(bad)?;
+                let records = usize::try_from(rlen)
+                    .ok()
+                    .and_then(|l| body.get(rec_at + 8..(rec_at + 8).checked_add(l)?))
+                    .ok_or_else(bad)?;
+                if clen == 0 {
+                    let mut r = 0usize;
+                    while r < records.len() {
+                        let ilen = u64_at(records, r + 1).ok_or_else(bad)?;
+                        let end = usize::try_from(ilen)
+                            .ok()
+                            .and_then(|l| (r + 9).checked_add(l))
+                            .filter(|&e| e <= records.len())
+                            .ok_or_else(bad)?;
+                        r = end;
+                    }
+                }
+            }
+            0x0F => return Ok(()), // data end
+            _ => {}
+        }
+        at += 9 + body.len();
     }
     Ok(())
 }
