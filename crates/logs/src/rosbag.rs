@@ -492,7 +492,9 @@ fn verify_mcap(path: &Path, bytes: &[u8]) -> Result<(), LogError> {
 /// `mcap` crate's reader does not, and underflows on such a file).
 fn check_uncompressed_chunks(path: &Path, bytes: &[u8]) -> Result<(), LogError> {
     let u64_at = |b: &[u8], at: usize| -> Option<u64> {
-        Some(u64::from_le_bytes(b.get(at..at.checked_add(8)?)?.try_into().ok()?))
+        Some(u64::from_le_bytes(
+            b.get(at..at.checked_add(8)?)?.try_into().ok()?,
+        ))
     };
     let mut at = MCAP_MAGIC.len();
     let mut chunk = 0usize;
