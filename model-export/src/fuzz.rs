@@ -333,3 +333,111 @@ pub fn wire_frame_target(data: &[u8]) {
         let _ = JointStateMessage::decode(w.try_into().expect("window length"));
     }
 }
+
+/// The joints the ROS 2 targets read (the default robot's, the UR driver's names mapped).
+fn bag_joint_names() -> Vec<String> {
+    [
+        "shoulder_pan",
+        "shoulder_lift",
+        "elbow",
+        "wrist_1",
+        "wrist_2",
+        "wrist_3",
+    ]
+    .map(String::from)
+    .to_vec()
+}
+
+/// Bag options of the ROS 2 targets: the UR driver's names mapped to the robot's.
+fn bag_options(time_source: logs::TimeSource) -> logs::BagOptions {
+    logs::BagOptions {
+        time_source,
+        joint_map: bag_joint_names()
+            .into_iter()
+            .map(|n| (format!("{n}_joint"), n))
+            .collect(),
+        ..logs::BagOptions::default()
+    }
+}
+
+/// What every accepted bag satisfies: one sample per message kept, time starting at 0
+/// and strictly increasing, every value finite, every array one entry per sample.
+fn check_bag_log(raw: &logs::RawLog) {
+    let n = raw.len();
+    assert!(
+        n > 0 && raw.time_s[0] == 0.0,
+        "a log not starting at time 0"
+    );
+    assert!(
+        raw.time_s.windows(2).all(|w| w[1] > w[0]),
+        "time not strictly increasing"
+    );
+    assert_eq!(raw.lines.len(), n);
+    let series = raw
+        .q_rad
+        .iter()
+        .chain(raw.qd_rad_s.iter().flatten())
+        .chain(raw.torque_nm.iter().flatten());
+    for s in series {
+        assert_eq!(s.len(), n, "a joint series of another length");
+        assert!(s.iter().all(|v| v.is_finite()), "a non-finite value");
+    }
+}
+
+/// Splits `data` into u32-LE-length-prefixed parts (a short or overlong prefix ends the
+/// list: the rest is the last part).
+fn framed_parts(mut data: &[u8]) -> Vec<Vec<u8>> {
+    let mut parts = Vec::new();
+    while data.len() >= 4 {
+        let len = u32::from_le_bytes([data[0], data[1], data[2], data[3]]) as usize;
+        let body = &data[4..];
+        let take = len.min(body.len());
+        parts.push(body[..take].to_vec());
+        data = &body[take..];
+    }
+    parts
+}
+
+/// rosbag2 folder: `data` is `metadata.yaml` then the storage files, each prefixed by its
+/// u32 LE length; the files are served in the order the metadata asks for them. Read
+/// with header stamps and with log time; whatever is accepted passes [`check_bag_log`].
+pub fn rosbag2_folder_target(data: &[u8]) {
+    let parts = framed_parts(data);
+    let Some((meta, files)) = parts.split_first() else {
+        return;
+    };
+    for ts in [logs::TimeSource::Header, logs::TimeSource::Log] {
+        let mut next = 0usize;
+        let mut load = |_: &str| -> Result<Vec<u8>, String> {
+            next += 1;
+            files
+                .get(next - 1)
+                .cloned()
+                .ok_or_else(|| "no such file".to_string())
+        };
+        if let Ok(raw) = logs::rosbag::parse_bag_folder(
+            Path::new("bag"),
+            meta,
+            &mut load,
+            &bag_options(ts),
+            &bag_joint_names(),
+        ) {
+            check_bag_log(&raw);
+        }
+    }
+}
+
+/// `.db3` (rosbag2 sqlite3 storage) bytes: read with header stamps and with log time;
+/// whatever is accepted passes [`check_bag_log`].
+pub fn db3_target(data: &[u8]) {
+    for ts in [logs::TimeSource::Header, logs::TimeSource::Log] {
+        if let Ok(raw) = logs::rosbag::parse_db3(
+            Path::new("bag.db3"),
+            data,
+            &bag_options(ts),
+            &bag_joint_names(),
+        ) {
+            check_bag_log(&raw);
+        }
+    }
+}

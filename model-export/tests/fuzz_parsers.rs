@@ -293,3 +293,13 @@ fn a_network_with_huge_weights_or_a_subnormal_std_is_refused() {
     m.output_std[0] = f32::MIN_POSITIVE;
     m.validate().unwrap();
 }
+
+#[test]
+fn fuzz_rosbag2_folder() {
+    check("rosbag2_folder", fuzz::rosbag2_folder_target);
+}
+
+#[test]
+fn fuzz_db3() {
+    check("db3", fuzz::db3_target);
+}

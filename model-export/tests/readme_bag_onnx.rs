@@ -24,7 +24,7 @@ fn readme_bag_and_onnx_commands_run() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
     let dir = tempfile::tempdir().unwrap();
     let lines = readme_commands("**ROS 2 recordings and ONNX networks.**");
-    assert_eq!(lines.len(), 3, "{lines:?}");
+    assert_eq!(lines.len(), 4, "{lines:?}");
     for line in &lines {
         let args: Vec<String> = line
             .split_whitespace()
@@ -50,7 +50,12 @@ fn readme_bag_and_onnx_commands_run() {
         );
         println!("{line}\n{}", String::from_utf8_lossy(&o.stdout));
     }
-    for out in ["bag-model.json", "bag-data.csv", "onnx-lstm.safetensors"] {
+    for out in [
+        "bag-model.json",
+        "bag-data.csv",
+        "ur-model.json",
+        "onnx-lstm.safetensors",
+    ] {
         assert!(dir.path().join(out).exists(), "{out}");
     }
 }

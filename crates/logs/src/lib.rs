@@ -23,7 +23,7 @@ use std::path::{Path, PathBuf};
 pub use preprocess::{
     MAX_GAP_GRID_STEPS, MAX_GRID_SAMPLES, PreprocessOptions, Samples, preprocess,
 };
-pub use rosbag::BagOptions;
+pub use rosbag::{BagOptions, TimeSource};
 
 /// One column of a log: by header name or by 1-based index.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -149,8 +149,12 @@ pub struct RawLog {
     pub drive_gains_nm_per_a: Option<Vec<f64>>,
     /// Joint torques [N·m] (currents × drive gains, or logged torques).
     pub torque_nm: Option<Vec<Vec<f64>>>,
-    /// 1-based file line of each sample (for error messages after reading).
+    /// 1-based file line of each sample (for error messages after reading; a bag's
+    /// message number on its topic).
     pub lines: Vec<u64>,
+    /// What reading did beyond the plain case (publishers merged or dropped), one
+    /// sentence each naming the file, for the user.
+    pub notes: Vec<String>,
 }
 
 impl RawLog {
@@ -220,8 +224,8 @@ pub fn sha256_hex(bytes: &[u8]) -> String {
     digest.iter().map(|b| format!("{b:02x}")).collect()
 }
 
-/// Reads a robot log: a ROS 2 recording (rosbag2 MCAP, by extension or content: see
-/// [`rosbag::is_mcap`]) with `bag`, its joints matched by name to `joint_names` (the
+/// Reads a robot log: a ROS 2 recording (a rosbag2 folder, an MCAP or `.db3` file, by
+/// extension or content: see [`rosbag::is_bag`]) with `bag`, its joints matched by name to `joint_names` (the
 /// robot's joints, in order), or a CSV file with `layout`.
 pub fn read_robot_log(
     path: &Path,
@@ -229,7 +233,7 @@ pub fn read_robot_log(
     bag: &BagOptions,
     joint_names: &[String],
 ) -> Result<RawLog, LogError> {
-    if rosbag::is_mcap(path) {
+    if rosbag::is_bag(path) {
         rosbag::read_bag(path, bag, joint_names)
     } else {
         if layout.n_joints() != joint_names.len() {
@@ -380,6 +384,7 @@ pub fn read_log(path: &Path, layout: &LogLayout) -> Result<RawLog, LogError> {
         drive_gains_nm_per_a: gains.clone(),
         torque_nm: effort_cols.as_ref().map(|_| vec![Vec::new(); n]),
         lines: Vec::new(),
+        notes: Vec::new(),
     };
 
     let mut pending_first = if first_is_header { None } else { Some(first) };

@@ -105,6 +105,13 @@ pub fn preprocess(raw: &RawLog, opt: &PreprocessOptions) -> Result<Samples, LogE
         field: field.map(str::to_string),
         message: msg,
     };
+    if opt.use_logged_qd && raw.qd_rad_s.is_none() {
+        return Err(err(
+            None,
+            Some("velocity"),
+            "logged velocities asked for (--use-logged-qd) but the log has none (a bag's velocity[] empty, a CSV without velocity columns)".into(),
+        ));
+    }
     let need = opt.min_samples.max(3);
     if raw.len() < need {
         return Err(err(
@@ -320,6 +327,7 @@ mod tests {
             path: "sim.csv".into(),
             sha256: String::new(),
             lines: (1..=t.len() as u64).collect(),
+            notes: Vec::new(),
             q_rad: vec![q.clone()],
             qd_rad_s: None,
             qdd_rad_s2: None,

@@ -3,7 +3,8 @@
 
 use clap::{Args, ValueEnum};
 use logs::{
-    BagOptions, ColumnRef, Effort, LogLayout, PreprocessOptions, UR10E_DRIVE_GAINS_NM_PER_A, rosbag,
+    BagOptions, ColumnRef, Effort, LogLayout, PreprocessOptions, TimeSource,
+    UR10E_DRIVE_GAINS_NM_PER_A, rosbag,
 };
 
 /// Starting point for the column layout.
@@ -32,9 +33,10 @@ pub enum HeaderMode {
 }
 
 /// Log column layout options. Columns are 1-based indices or header names; lists are
-/// comma separated, one entry per joint of the log. A ROS 2 recording (`.mcap`) needs
-/// none of them: its joints are matched by name (`--topic`, and `--drive-gains` when its
-/// effort is motor current).
+/// comma separated, one entry per joint of the log. A ROS 2 recording (a rosbag2
+/// folder, `.mcap` or `.db3`) needs none of them: its joints are matched by name
+/// (`--topic`, `--joint-map`, `--time-source`, and `--drive-gains` when its effort is
+/// motor current).
 #[derive(Debug, Clone, Args)]
 pub struct LayoutArgs {
     /// Column layout preset; the column options below override its columns.
@@ -80,6 +82,23 @@ pub struct LayoutArgs {
     /// effort[] is joint torque [N·m], or motor current [A] when --drive-gains is given.
     #[arg(long, default_value = rosbag::DEFAULT_TOPIC)]
     pub topic: String,
+    /// ROS 2 recordings: names in the bag renamed to the robot's joint names, as
+    /// `BAG=ROBOT,...` or a file of such pairs (one or more a line, `#` comments).
+    #[arg(long, value_name = "FILE|A=B,...")]
+    pub joint_map: Option<String>,
+    /// ROS 2 recordings: each message's time, from its header stamp or from when the
+    /// bag logged it (for drivers whose stamps are zero or repeated).
+    #[arg(long, value_enum, default_value_t = TimeSourceArg::Header)]
+    pub time_source: TimeSourceArg,
+}
+
+/// Where a ROS 2 message's time comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum TimeSourceArg {
+    /// header.stamp.
+    Header,
+    /// The bag's log time (MCAP log_time, .db3 timestamp).
+    Log,
 }
 
 impl LayoutArgs {
@@ -151,11 +170,27 @@ impl LayoutArgs {
 impl LayoutArgs {
     /// How to read ROS 2 recordings: the topic, and the drive gains only when given
     /// explicitly (a recording's effort is torque unless the user says it is current).
-    pub fn bag_options(&self) -> BagOptions {
-        BagOptions {
+    pub fn bag_options(&self) -> anyhow::Result<BagOptions> {
+        let joint_map = match &self.joint_map {
+            None => Vec::new(),
+            Some(m) if !m.contains('=') || std::path::Path::new(m).is_file() => {
+                let text = std::fs::read_to_string(m)
+                    .map_err(|e| anyhow::anyhow!("--joint-map {m}: cannot read: {e}"))?;
+                rosbag::parse_joint_map(&text).map_err(|e| anyhow::anyhow!("{m}: {e}"))?
+            }
+            Some(m) => {
+                rosbag::parse_joint_map(m).map_err(|e| anyhow::anyhow!("--joint-map: {e}"))?
+            }
+        };
+        Ok(BagOptions {
             topic: self.topic.clone(),
             drive_gains_nm_per_a: self.drive_gains.clone(),
-        }
+            time_source: match self.time_source {
+                TimeSourceArg::Header => TimeSource::Header,
+                TimeSourceArg::Log => TimeSource::Log,
+            },
+            joint_map,
+        })
     }
 }
 

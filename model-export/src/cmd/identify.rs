@@ -192,6 +192,9 @@ fn load_logs(
         .iter()
         .map(|p| {
             let raw = read_robot_log(p, layout, bag, &names)?;
+            for note in &raw.notes {
+                eprintln!("note: {note}");
+            }
             angles_within_limits(&raw, robot)?;
             gains.push(raw.drive_gains_nm_per_a.clone());
             Ok(preprocess(&raw, pre)?)
@@ -312,7 +315,7 @@ pub fn identify(a: &IdentifyArgs) -> anyhow::Result<()> {
     let robot_hash = logs::sha256_hex(&source.bytes()?);
     let layout = a.layout.layout()?;
     let pre = a.pre.options()?;
-    let bag = a.layout.bag_options();
+    let bag = a.layout.bag_options()?;
     let (id_logs, id_gains) = load_logs(&a.logs, &layout, &bag, &pre, &robot)?;
     let (val_logs, _) = load_logs(&a.validation, &layout, &bag, &pre, &robot)?;
     // The model file records one set of drive gains: the identification logs' effort
@@ -576,9 +579,12 @@ pub fn torque(a: &TorqueArgs) -> anyhow::Result<()> {
     let raw = read_robot_log(
         &a.log,
         &layout,
-        &a.layout.bag_options(),
+        &a.layout.bag_options()?,
         &joint_names(&robot),
     )?;
+    for note in &raw.notes {
+        eprintln!("note: {note}");
+    }
     if raw.q_rad.len() != robot.dof() {
         bail!(
             "{}: the log has {} joints but the robot has {}",
