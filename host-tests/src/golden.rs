@@ -151,7 +151,12 @@ pub fn host_envelope() -> Vec<Record> {
     let mut out = Vec::new();
     for case in 0..golden::ENVELOPE_CASES {
         for (k, v) in golden::envelope_output(case).iter().enumerate() {
-            out.push(Record::new(&format!("e{k}"), case, case as u32, v.to_bits()));
+            out.push(Record::new(
+                &format!("e{k}"),
+                case,
+                case as u32,
+                v.to_bits(),
+            ));
         }
     }
     golden::envelope_stream(|t, y, w| {
@@ -168,7 +173,12 @@ pub fn host_monitor() -> Vec<Record> {
     let mut out = Vec::with_capacity(golden::MONITOR_CASES * golden::MONITOR_VALUES);
     for case in 0..golden::MONITOR_CASES {
         for (k, v) in golden::monitor_output(case).iter().enumerate() {
-            out.push(Record::new(&format!("m{k}"), case, case as u32, v.to_bits()));
+            out.push(Record::new(
+                &format!("m{k}"),
+                case,
+                case as u32,
+                v.to_bits(),
+            ));
         }
     }
     out
