@@ -47,7 +47,8 @@ fn main() {
     let run = BenchRun::from_args();
     println!("| shape | joints | bytes | read [ms] | per joint [us] |");
     println!("|---|---:|---:|---:|---:|");
-    for n in run.size(vec![500, 1000, 2000, 4000, 8000], vec![50, 100]) {
+    // A modelled chain has at most `artifacts::plausible::MAX_JOINTS` (64) joints.
+    for n in run.size(vec![16, 32, 64], vec![16, 64]) {
         let t = urdf_chain::chain_urdf(n);
         let s = best_of_3(&t);
         println!(

@@ -263,6 +263,9 @@ fn the_network_option_takes_an_onnx_file_from_the_default_exporter() {
         "--precision",
         "f32",
         "--allow-worse",
+        // An imported network carries no training envelope: the user opts out of it
+        // by name (or names the training datasets with --envelope-data).
+        "--no-envelope",
         "--out",
         &s(&out),
     ])

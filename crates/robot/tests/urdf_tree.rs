@@ -281,11 +281,19 @@ fn link(name: &str) -> String {
 }
 
 #[test]
-fn a_4000_joint_chain_parses_to_4000_joints() {
-    let text = chain_urdf(4000);
+fn a_64_joint_chain_parses_and_a_4000_joint_chain_is_refused() {
+    let text = chain_urdf(artifacts::plausible::MAX_JOINTS);
     let r = Robot::from_urdf_str(&text, "long.urdf").unwrap();
-    assert_eq!(r.dof(), 4000);
-    assert_eq!(r.joints[3999].name, "j3999");
+    assert_eq!(r.dof(), artifacts::plausible::MAX_JOINTS);
+    assert_eq!(r.joints[63].name, "j63");
+    // A modelled chain longer than any arm: refused by name before anything is sized
+    // by it.
+    let text = chain_urdf(4000);
+    let e = Robot::from_urdf_str(&text, "long.urdf").unwrap_err();
+    assert!(
+        e.to_string().contains("long.urdf") && e.to_string().contains("MAX_JOINTS"),
+        "{e}"
+    );
     // Over the limit: refused by the scan, naming the limit.
     let text = chain_urdf(MAX_URDF_JOINTS + 1);
     let e = Robot::from_urdf_str(&text, "huge.urdf").unwrap_err();
