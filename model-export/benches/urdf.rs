@@ -20,7 +20,7 @@ fn fixed_tree(n: usize) -> String {
     let mut s = String::from("<robot name=\"tree\">\n");
     s.push_str(&link("base"));
     s.push_str(&link("t1"));
-    s.push_str("  <joint name=\"j\" type=\"revolute\"><parent link=\"base\"/><child link=\"t1\"/><axis xyz=\"0 0 1\"/></joint>\n");
+    s.push_str("  <joint name=\"j\" type=\"revolute\"><parent link=\"base\"/><child link=\"t1\"/><axis xyz=\"0 0 1\"/><limit lower=\"-1\" upper=\"1\" effort=\"10\" velocity=\"2\"/></joint>\n");
     for i in 2..=n {
         s.push_str(&link(&format!("t{i}")));
         s.push_str(&format!(
