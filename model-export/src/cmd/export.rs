@@ -220,7 +220,7 @@ fn gate(m: &LstmModel, a: &ExportArgs) -> Result<Vec<GateRow>> {
     let mut rows = Vec::new();
     for (run, (path, table)) in a.gate_data.iter().zip(&tables).enumerate() {
         let seq = spec
-            .sequence(&table)
+            .sequence(table)
             .with_context(|| format!("{}", path.display()))?;
         let base = match &baseline {
             Some(b) => compnet::eval::baseline_rms(&spec, table, seq.len(), b)?,
