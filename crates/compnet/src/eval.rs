@@ -167,21 +167,8 @@ pub fn monitored_rms(
             out.push(None);
             continue;
         };
-        if seq.len() + t.shift > rows {
-            bail!(
-                "{}: {} steps shifted by {} exceed the table's {rows} rows",
-                table.path.display(),
-                seq.len(),
-                t.shift
-            );
-        }
-        let per_row = |value: &dyn Fn(usize) -> f64| -> Vec<f64> {
-            let mut v = vec![f64::NAN; rows];
-            for r in 0..seq.len() {
-                v[r + t.shift] = value(r) + seq.offset[r][k] as f64;
-            }
-            v
-        };
+        check_span(table, seq.len(), t.shift)?;
+        let per_row = |value: &dyn Fn(usize) -> f64| absolute_per_row(rows, seq, k, t.shift, value);
         let scored = scored.column(&format!("tau_meas_j{j}"))?;
         let span = t.shift..t.shift + seq.len();
         let base = per_row(&|r| seq.model_only[r][k] as f64);
@@ -253,22 +240,8 @@ pub fn adapted_rms(
             out.push(None);
             continue;
         };
-        if seq.len() + t.shift > rows {
-            bail!(
-                "{}: {} steps shifted by {} exceed the table's {rows} rows",
-                table.path.display(),
-                seq.len(),
-                t.shift
-            );
-        }
-        // Absolute torque predictions per table row (NaN where the sequence has none).
-        let per_row = |value: &dyn Fn(usize) -> f64| -> Vec<f64> {
-            let mut v = vec![f64::NAN; rows];
-            for r in 0..seq.len() {
-                v[r + t.shift] = value(r) + seq.offset[r][k] as f64;
-            }
-            v
-        };
+        check_span(table, seq.len(), t.shift)?;
+        let per_row = |value: &dyn Fn(usize) -> f64| absolute_per_row(rows, seq, k, t.shift, value);
         let scored = scored.column(&format!("tau_meas_j{j}"))?;
         let span = t.shift..t.shift + seq.len();
         let rms = |p: Vec<f64>| -> Result<f64> {
@@ -331,14 +304,7 @@ pub fn baseline_rms(
             out.push(None);
             continue;
         };
-        if steps + t.shift > table.len() {
-            bail!(
-                "{}: {steps} steps shifted by {} exceed the table's {} rows",
-                table.path.display(),
-                t.shift,
-                table.len()
-            );
-        }
+        check_span(table, steps, t.shift)?;
         let y = table.column(&t.column)?;
         let ss: f64 = (0..steps)
             .map(|r| (y[r + t.shift] as f64 - b[r + t.shift]).powi(2))
@@ -413,6 +379,34 @@ pub fn beside_paper_markdown(joints: &[usize], rows: &[TargetEval]) -> Option<St
         );
     }
     Some(s)
+}
+
+/// Refuses `steps` steps shifted by `shift` that run past the table's rows.
+fn check_span(table: &Table, steps: usize, shift: usize) -> Result<()> {
+    if steps + shift > table.len() {
+        bail!(
+            "{}: {steps} steps shifted by {shift} exceed the table's {} rows",
+            table.path.display(),
+            table.len()
+        );
+    }
+    Ok(())
+}
+
+/// Output `k`'s absolute torque per table row (`value` of each step plus the step's
+/// offset, at its row `step + shift`; NaN where the sequence has none).
+fn absolute_per_row(
+    rows: usize,
+    seq: &Sequence,
+    k: usize,
+    shift: usize,
+    value: &dyn Fn(usize) -> f64,
+) -> Vec<f64> {
+    let mut v = vec![f64::NAN; rows];
+    for r in 0..seq.len() {
+        v[r + shift] = value(r) + seq.offset[r][k] as f64;
+    }
+    v
 }
 
 #[cfg(test)]
