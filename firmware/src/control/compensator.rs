@@ -788,8 +788,12 @@ mod tests {
         tick_own(c, k, &state(own_q))
     }
 
-    /// [`tick`] with the whole own state.
-    fn tick_own(c: &mut Comp, k: u32, own: &JointState) -> CompensatorOutput {
+    /// [`tick`] with the whole own state, for a compensator of any stages.
+    fn tick_own<M: TorquePredictor<3>, L: TorquePredictor<3>>(
+        c: &mut Compensator<3, M, L>,
+        k: u32,
+        own: &JointState,
+    ) -> CompensatorOutput {
         for j in [0u8, 2] {
             c.receive(&JointStateMessage {
                 joint: j,
@@ -833,16 +837,7 @@ mod tests {
                 Compensator::new(config(), TestModel::new(None), WeightedLstm(weight)).unwrap();
             let mut o = CompensatorOutput::default();
             for k in 1..40u32 {
-                for j in [0u8, 2] {
-                    c.receive(&JointStateMessage {
-                        joint: j,
-                        session: 0,
-                        sequence: k as u16,
-                        timestamp_us: k * 1000,
-                        state: state(0.5),
-                    });
-                }
-                o = c.tick(&state(3.0), k * 1000);
+                o = tick_own(&mut c, k, &state(3.0));
             }
             assert_eq!(o.source, FeedforwardSource::ModelLstm);
             assert_eq!(o.envelope_weight, weight);
@@ -1249,16 +1244,7 @@ mod tests {
             Compensator::new(config(), TestModel::new(None), NoPredictor).unwrap();
         let mut o = CompensatorOutput::default();
         for k in 1..30 {
-            for j in [0u8, 2] {
-                c.receive(&JointStateMessage {
-                    joint: j,
-                    session: 0,
-                    sequence: k as u16,
-                    timestamp_us: k * 1000,
-                    state: state(0.5),
-                });
-            }
-            o = c.tick(&state(3.0), k * 1000);
+            o = tick_own(&mut c, k, &state(3.0));
         }
         assert_eq!((o.source, o.torque_nm), (FeedforwardSource::Model, 6.0));
     }
