@@ -66,18 +66,23 @@ pub struct LayoutArgs {
         conflicts_with = "current_cols"
     )]
     pub torque_cols: Option<Vec<String>>,
-    /// Motor current columns [A] (torque = current × drive gain).
+    /// Motor current columns [A] (torque = current × torque constant).
     #[arg(long, value_name = "COLS", value_delimiter = ',')]
     pub current_cols: Option<Vec<String>>,
-    /// Drive gains [N·m/A] per joint for current columns (default: the UR10e's
-    /// 10.0,10.6956,8.4566,9.0029,9.48,10.1232 for 6 joints).
-    #[arg(long, value_name = "GAINS", value_delimiter = ',')]
+    /// Torque constants [N·m/A, joint side] per joint for current columns (default: the
+    /// UR10e's 10.0,10.6956,8.4566,9.0029,9.48,10.1232 for 6 joints).
+    #[arg(
+        long = "torque-constants",
+        alias = "drive-gains",
+        value_name = "NM_PER_A",
+        value_delimiter = ','
+    )]
     pub drive_gains: Option<Vec<f64>>,
     /// Data rows to skip at the start of each log (after any header), e.g. corrupt rows.
     #[arg(long, default_value_t = 0)]
     pub skip_rows: usize,
     /// ROS 2 recordings (rosbag2 MCAP): the sensor_msgs/msg/JointState topic. Its
-    /// effort[] is joint torque [N·m], or motor current [A] when --drive-gains is given.
+    /// effort[] is joint torque [N·m], or motor current [A] when --torque-constants is given.
     #[arg(long, default_value = rosbag::DEFAULT_TOPIC)]
     pub topic: String,
 }

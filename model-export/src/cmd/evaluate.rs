@@ -11,9 +11,9 @@ use std::path::{Path, PathBuf};
 /// `evaluate` options.
 #[derive(Debug, Args)]
 pub struct EvaluateArgs {
-    /// Model (safetensors).
-    #[arg(long)]
-    pub model: PathBuf,
+    /// Network (safetensors).
+    #[arg(long = "network", alias = "model", value_name = "FILE")]
+    pub network: PathBuf,
     /// CSV logs, each streamed whole from the zero state.
     #[arg(long, required = true, value_delimiter = ',')]
     pub data: Vec<PathBuf>,
@@ -51,9 +51,9 @@ pub struct EvaluateArgs {
 /// Runs `evaluate`.
 pub fn run(a: EvaluateArgs) -> Result<()> {
     let spec = a.features.spec()?;
-    let model = io::read_model(&a.model)?;
+    let model = io::read_model(&a.network)?;
     spec.check_model(&model)
-        .with_context(|| format!("{}", a.model.display()))?;
+        .with_context(|| format!("{}", a.network.display()))?;
     // The linear baseline, fitted on --baseline-data (before any output).
     let baseline = if a.baseline_data.is_empty() {
         None
