@@ -34,9 +34,7 @@ const CONCEPT_WORDS: &[&str] = &[
     "preset",
     "paper",
     "drive",
-    "gain",
     "gains",
-    "constant",
     "constants",
 ];
 
