@@ -2,7 +2,7 @@
 # The real-data compensation study in one command, on a folder with the UR10e layout
 # (`ur10e.urdf`, `identification/*.csv`, `validation/*.csv`: static poses):
 # - identify twice on the training runs: the paper model (viscous + Coulomb smoothed at
-#   0.02 rad/s) -> paper-model.json, and the first stage (`--friction-model extended`)
+#   0.02 rad/s) -> paper-model.json, and the first stage (`--friction extended`)
 #   -> model.json;
 # - one compensation dataset per run and model (data-paper/, data/): training and
 #   validation runs whole (`--trim-rest-rad-s 0`), test runs and static poses with the
@@ -23,7 +23,7 @@
 # Usage: bash scripts/ur10e_compensation.sh DATASET_DIR OUT_DIR
 # Environment (optional): TEST_RUNS, VALIDATION_RUN, JOINTS (1,2,3,4,5,6), EPOCHS (60),
 # NETS (names from the table below, space separated; default all),
-# FIRST_STAGE_ARGS (default `--coulomb-smoothing-rad-s 0.02 --friction-model extended`),
+# FIRST_STAGE_ARGS (default `--coulomb-smoothing-rad-s 0.02 --friction extended`),
 # ADAPT_TIME_CONSTANT_S (2) and ADAPT_MAX_NM (10): the drive's online friction adaptation,
 # SCORE_CUTOFF_HZ (5): the low-pass of the second scoring, MONITOR_WINDOW_S (2; 0 turns
 # it off): the window of the drive's do-no-harm monitor run after every network (and after
@@ -44,14 +44,14 @@ monitor_window_s="${MONITOR_WINDOW_S:-2}"
 monitor=()
 [ "$monitor_window_s" = 0 ] || monitor=(--monitor-window-s "$monitor_window_s")
 epochs="${EPOCHS:-60}"
-read -r -a first_stage_args <<< "${FIRST_STAGE_ARGS:---coulomb-smoothing-rad-s 0.02 --friction-model extended}"
+read -r -a first_stage_args <<< "${FIRST_STAGE_ARGS:---coulomb-smoothing-rad-s 0.02 --friction extended}"
 # name preset dataset-folder paper-output: the paper's presets over the paper model (as
 # scripts/ur10e_lstm.sh; `paper` in its exportable form relative to the model, which reads
 # the measured residual; `paper_next` the paper's next-step torque), the drive-side
 # compensator and both presets over the first stage.
 all_nets=("drive drive data -" "feedforward feedforward data-paper -"
-  "paper paper data-paper relative" "paper_next paper data-paper next"
-  "feedforward_first_stage feedforward data -" "paper_first_stage paper data relative")
+  "paper paper_relative data-paper -" "paper_next paper data-paper -"
+  "feedforward_first_stage feedforward data -" "paper_first_stage paper_relative data -")
 read -r -a want_nets <<< "${NETS:-drive feedforward paper paper_next feedforward_first_stage paper_first_stage}"
 
 target="${CARGO_TARGET_DIR:-$root/target}"
@@ -103,14 +103,14 @@ mkdir -p "$out/data" "$out/data-paper" "$out/eval"
 cd "$out"
 logs=()
 for r in "${train[@]}"; do logs+=(--log "$I/$r.csv"); done
-"$ME" identify --robot "$D/ur10e.urdf" --layout ur10e "${logs[@]}" --validate "$I/$val.csv" \
+"$ME" identify --robot "$D/ur10e.urdf" --layout ur10e "${logs[@]}" --validation-log "$I/$val.csv" \
   --coulomb-smoothing-rad-s 0.02 -o paper-model.json > identify-paper.txt
-"$ME" identify --robot "$D/ur10e.urdf" --layout ur10e "${logs[@]}" --validate "$I/$val.csv" \
+"$ME" identify --robot "$D/ur10e.urdf" --layout ur10e "${logs[@]}" --validation-log "$I/$val.csv" \
   "${first_stage_args[@]}" -o model.json > identify.txt
 
 # dataset MODEL_JSON FOLDER CSV NAME TRIM
 dataset() {
-  "$ME" torque --robot "$D/ur10e.urdf" --model "$1" --layout ur10e --log "$3" --dataset \
+  "$ME" torque --robot "$D/ur10e.urdf" --identified "$1" --layout ur10e --log "$3" --dataset \
     --trim-rest-rad-s "$5" --torque-cutoff-hz 0 -o "$2/$4.csv" > /dev/null
 }
 for pair in "paper-model.json data-paper" "model.json data"; do
@@ -125,9 +125,8 @@ train_list() { local r s=""; for r in "${train[@]}"; do s+="$1/$r.csv,"; done; e
 nets_run=()
 : > train_seconds.txt
 for spec in "${all_nets[@]}"; do
-  read -r name preset dir form <<< "$spec"
+  read -r name preset dir _ <<< "$spec"
   output=()
-  [ "$form" = - ] || output=(--paper-output "$form")
   case " ${want_nets[*]} " in *" $name "*) ;; *) continue ;; esac
   nets_run+=("$name")
   echo "== $name: preset $preset on $dir/"
@@ -163,7 +162,7 @@ for spec in "${all_nets[@]}"; do
         [ "$scoring" = raw ] || score=(--score-cutoff-hz "$score_cutoff_hz")
         suffix=""
         [ "$scoring" = raw ] || suffix="_lp"
-        "$ME" evaluate --model "lstm_$tag.safetensors" --data "$dir/$r.csv" --preset "$preset" \
+        "$ME" evaluate --network "lstm_$tag.safetensors" --data "$dir/$r.csv" --preset "$preset" \
           "${output[@]}" --joints "$g" --baseline-data "$(train_list "$dir")" \
           --adapt-time-constant-s "$adapt_time_constant_s" --adapt-max-nm "$adapt_max_nm" \
           "${score[@]}" "${monitor[@]}" --report "eval/${tag}_$r$suffix.json" > "eval/${tag}_$r$suffix.txt"

@@ -22,15 +22,15 @@ val=20_02_05-20sec_12harm
 tests=(20_02_19_15harm50sec 20_02_10-30sec_12harm)
 # shellcheck disable=SC2046
 "$ME" identify --robot "$D/ur10e.urdf" --layout ur10e $(for f in "${fit[@]}"; do log "$I/ur-$f.csv"; done) \
-  --validate "$I/ur-${tests[0]}.csv" --coulomb-smoothing-rad-s 0.02 -o model.json > identify.txt
+  --validation-log "$I/ur-${tests[0]}.csv" --coulomb-smoothing-rad-s 0.02 -o model.json > identify.txt
 for f in "${fit[@]}" "${more[@]}" "$val" "${tests[@]}"; do
-  "$ME" torque --robot "$D/ur10e.urdf" --model model.json --layout ur10e --log "$I/ur-$f.csv" \
+  "$ME" torque --robot "$D/ur10e.urdf" --identified model.json --layout ur10e --log "$I/ur-$f.csv" \
     --dataset --trim-rest-rad-s 0 --torque-cutoff-hz 0 -o "data/$f.csv" > /dev/null
 done
 train=$(for f in "${fit[@]}" "${more[@]}"; do printf "data/%s.csv," "$f"; done)
 for form in next increment feedforward; do
   case $form in
-    next) p=(--preset paper --paper-output next) ;;
+    next) p=(--preset paper) ;;
     increment) p=(--preset paper --paper-output increment) ;;
     feedforward) p=(--preset feedforward) ;;
   esac
@@ -39,7 +39,7 @@ for form in next increment feedforward; do
     --loss-plot "loss_$form.svg" --report "train_$form.json" > "train_$form.txt"
   for t in "${tests[@]}"; do
     echo "== $form on $t"
-    "$ME" evaluate --model "lstm_$form.safetensors" --data "data/$t.csv" "${p[@]}" \
+    "$ME" evaluate --network "lstm_$form.safetensors" --data "data/$t.csv" "${p[@]}" \
       --joints 1,2,3,4,5,6 --report "eval_${form}_$t.json"
   done
 done

@@ -25,5 +25,5 @@ $ME export --dims 3,16,16,1 --seed 3 --joints 5 --precision int16 --budgets host
 $ME export --dims 11,16,16,1 --seed 4 --preset drive --joints 5 --precision int16 --budgets host-tests/budgets.toml --out $D/bench_drive_int16.rs
 # The PyTorch fixture with a linear input layer (scripts/make_torch_fixture.py).
 for p in f32 int16 int8; do
-  $ME export --model crates/compnet/tests/fixtures/torch_linear.safetensors --joints 1,2 --precision $p --self-check-steps 10000 --allow-worse --no-envelope --budgets host-tests/budgets.toml --out $D/golden_linear_$p.rs
+  $ME export --network crates/compnet/tests/fixtures/torch_linear.safetensors --joints 1,2 --precision $p --self-check-steps 10000 --allow-worse --no-envelope --budgets host-tests/budgets.toml --out $D/golden_linear_$p.rs
 done

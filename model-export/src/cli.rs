@@ -25,10 +25,10 @@ pub enum Command {
     /// Software in the loop: the firmware's drives and compensators on the paper's wrist
     /// (joints 4-6 on the plant simulator's true dynamics, friction and ripple); prints
     /// per joint RMS tracking error and RMS q current for no feedforward, the identified
-    /// model (--model), and model + LSTM f32 / int16 (--lstm). Without --model: the
+    /// model (--identified), and model + LSTM f32 / int16 (--network). Without --identified: the
     /// single-joint and coupled-load demos.
     Sil {
-        /// Wrist options (`--model` selects the wrist; without it the demos run).
+        /// Wrist options (`--identified` selects the wrist; without it the demos run).
         #[command(flatten)]
         wrist: Box<crate::cmd::sil::SilArgs>,
     },
@@ -36,7 +36,7 @@ pub enum Command {
     /// squares; write the model JSON and print per-joint RMS errors.
     ///
     /// Example (UR10e data): model-export identify --robot ur10e.urdf --log a.csv
-    /// --log b.csv --validate c.csv -o ur10e-model.json
+    /// --log b.csv --validation-log c.csv -o ur10e-model.json
     Identify(Box<crate::cmd::identify::IdentifyArgs>),
     /// Predict joint torques for a log or a CSV of states with the robot's nominal
     /// parameters or an identified model (firmware f32 model); write them as CSV.
@@ -85,15 +85,15 @@ fn files(command: &Command) -> (Vec<&Path>, Vec<&Path>) {
                 .chain(all(&a.logs))
                 .chain(all(&a.validation))
                 .collect(),
-            vec![&a.output],
+            vec![&a.out],
         ),
         Command::Torque(a) => (
-            [a.robot.as_ref(), a.model.as_ref(), Some(&a.log)]
+            [a.robot.as_ref(), a.identified.as_ref(), Some(&a.log)]
                 .into_iter()
                 .flatten()
                 .map(PathBuf::as_path)
                 .collect(),
-            vec![&a.output],
+            vec![&a.out],
         ),
         Command::Train(a) => (
             all(&a.data).chain(all(&a.validation_data)).collect(),
@@ -104,21 +104,21 @@ fn files(command: &Command) -> (Vec<&Path>, Vec<&Path>) {
                 .collect(),
         ),
         Command::Evaluate(a) => (
-            std::iter::once(a.model.as_path())
+            std::iter::once(a.network.as_path())
                 .chain(all(&a.data))
                 .chain(all(&a.baseline_data))
                 .collect(),
             a.report.iter().map(PathBuf::as_path).collect(),
         ),
         Command::Import(a) => (
-            std::iter::once(a.torch.as_path())
+            std::iter::once(a.network.as_path())
                 .chain(a.reference.as_deref())
                 .collect(),
             vec![&a.out],
         ),
         Command::Export(a) => (
             [
-                &a.model,
+                &a.network,
                 &a.robot,
                 &a.identified,
                 &a.accuracy_log,
@@ -130,7 +130,7 @@ fn files(command: &Command) -> (Vec<&Path>, Vec<&Path>) {
             .chain(all(&a.gate_data))
             .collect(),
             std::iter::once(a.out.as_path())
-                .chain(a.accuracy_json.as_deref())
+                .chain(a.report.as_deref())
                 .collect(),
         ),
         Command::Simulate(a) => (
@@ -139,15 +139,15 @@ fn files(command: &Command) -> (Vec<&Path>, Vec<&Path>) {
                 .flatten()
                 .map(PathBuf::as_path)
                 .collect(),
-            vec![&a.output],
+            vec![&a.out],
         ),
         Command::Sil { wrist: a } => (
-            [&a.model, &a.lstm, &a.robot, &a.plant, &a.trajectory]
+            [&a.identified, &a.network, &a.robot, &a.plant, &a.trajectory]
                 .into_iter()
                 .flatten()
                 .map(PathBuf::as_path)
                 .collect(),
-            [&a.json, &a.markdown]
+            [&a.report, &a.report_md]
                 .into_iter()
                 .flatten()
                 .map(PathBuf::as_path)
@@ -158,19 +158,38 @@ fn files(command: &Command) -> (Vec<&Path>, Vec<&Path>) {
     }
 }
 
-/// The files `excite` writes (they are derived from `--out-dir` and `--name`).
+/// The files `excite` writes (they are derived from `--out` and `--name`).
 fn excite_outputs(a: &crate::cmd::excite::ExciteArgs) -> Vec<PathBuf> {
     ["json", "csv", "svg"]
         .iter()
-        .map(|ext| a.out_dir.join(format!("{}.{ext}", a.name)))
+        .map(|ext| a.out.join(format!("{}.{ext}", a.name)))
         .collect()
+}
+
+/// Parses a whole command line (program name first), printing a warning on standard
+/// error for each old spelling of a renamed flag ([`crate::args::renamed`]).
+pub fn parse_from<I, T>(line: I) -> Result<Cli, clap::Error>
+where
+    I: IntoIterator<Item = T>,
+    T: Into<std::ffi::OsString> + Clone,
+{
+    let line: Vec<std::ffi::OsString> = line.into_iter().map(Into::into).collect();
+    let text: Vec<String> = line
+        .iter()
+        .skip(1)
+        .map(|a| a.to_string_lossy().into_owned())
+        .collect();
+    for warning in crate::args::renamed::warnings(&text) {
+        eprintln!("{warning}");
+    }
+    Cli::try_parse_from(line)
 }
 
 /// Parses the arguments after `model-export` and runs them, as the binary does with its
 /// command line.
 pub fn run_args(args: &[&str]) -> anyhow::Result<()> {
     let line = std::iter::once("model-export").chain(args.iter().copied());
-    run(Cli::try_parse_from(line)?)
+    run(parse_from(line)?)
 }
 
 /// Runs one parsed command line.
@@ -202,10 +221,10 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
             Ok(())
         }
         Command::Sil { wrist } => {
-            if wrist.model.is_some() {
+            if wrist.identified.is_some() {
                 crate::cmd::sil::run(&wrist)
             } else if wrist.adapt_time_constant_s.is_some() {
-                anyhow::bail!("--adapt-time-constant-s is for the wrist SIL: give --model too")
+                anyhow::bail!("--adapt-time-constant-s is for the wrist SIL: give --identified too")
             } else {
                 run_sil(wrist.seconds.unwrap_or(5.0), wrist.seed)
             }

@@ -59,7 +59,7 @@ fn edit_column(from: &Path, to: &Path, column: &str, edit: impl Fn(usize, &str) 
 /// `report`.
 fn evaluation_args(model: &Path, test: &Path, report: &Path) -> Vec<OsString> {
     vec![
-        "--model".into(),
+        "--network".into(),
         model.into(),
         "--data".into(),
         test.into(),

@@ -271,7 +271,7 @@ fn trained_slow_run_three_times_faster_the_compensator_stays_with_the_model() {
     let report = dir.path().join("eval.json");
     cli(&[
         "evaluate",
-        "--model",
+        "--network",
         &path(&net_path),
         "--data",
         &path(&fast_csv),
@@ -305,7 +305,7 @@ fn trained_slow_run_three_times_faster_the_compensator_stays_with_the_model() {
     let export = |extra: &[&str]| {
         let mut args = vec![
             "export",
-            "--model",
+            "--network",
             bare_path.to_str().unwrap(),
             "--joints",
             "1",

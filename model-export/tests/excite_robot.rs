@@ -35,7 +35,7 @@ fn cli_writes_outputs_and_rejects_bad_input_without_partial_files() {
         ])
         .arg("--robot")
         .arg(&robot_path)
-        .arg("--out-dir")
+        .arg("--out")
         .arg(dir.path())
         .output()
         .unwrap();
@@ -71,7 +71,7 @@ fn cli_writes_outputs_and_rejects_bad_input_without_partial_files() {
         ])
         .arg("--robot")
         .arg(&robot_path)
-        .arg("--out-dir")
+        .arg("--out")
         .arg(bad.path())
         .output()
         .unwrap();

@@ -17,10 +17,10 @@ fn workspace() -> PathBuf {
 
 fn args(out: PathBuf, precision: Precision) -> ExportArgs {
     ExportArgs {
-        model: None,
+        network: None,
         dims: vec![5, 12, 8, 3],
         seed: 7,
-        preset: "custom".into(),
+        preset: firmware::nn::format::FeaturePreset::Custom,
         joints: vec![1, 2, 3],
         control_rate_hz: 100,
         precision,
@@ -32,7 +32,7 @@ fn args(out: PathBuf, precision: Precision) -> ExportArgs {
         accuracy_log: None,
         identified: None,
         chain: Default::default(),
-        accuracy_json: None,
+        report: None,
         gate_data: Vec::new(),
         allow_worse: false,
         envelope_data: Vec::new(),
@@ -159,7 +159,8 @@ fn regenerating_the_linear_input_golden_models_gives_the_committed_files() {
     for p in Precision::ALL {
         let out = dir.path().join(format!("golden_linear_{}.rs", p.name()));
         let mut a = args(out.clone(), p);
-        a.model = Some(workspace().join("crates/compnet/tests/fixtures/torch_linear.safetensors"));
+        a.network =
+            Some(workspace().join("crates/compnet/tests/fixtures/torch_linear.safetensors"));
         a.joints = vec![1, 2];
         a.allow_worse = true;
         // An imported network carries no training envelope: refused unless the user
@@ -265,7 +266,7 @@ fn an_increment_network_is_refused_and_writes_nothing() {
     let err = model_export::cmd::export::export(&m, &a).unwrap_err();
     let text = format!("{err:#}");
     assert!(text.contains("tau_meas_j4@+1-tau_meas_j4@0"), "{text}");
-    assert!(text.contains("--paper-output relative"), "{text}");
+    assert!(text.contains("--preset paper_relative"), "{text}");
     assert!(!out.exists(), "a refused export left {}", out.display());
     // The same network with the next-step output exports, and so does the form relative
     // to the model torque, as its own preset.
@@ -357,9 +358,9 @@ fn the_do_no_harm_gate_refuses_a_network_worse_than_the_model() {
     let (mut m, run) = gate_case(dir.path());
     let mut a = args(out.clone(), Precision::Int16);
     a.dims = vec![DRIVE_INPUTS_PER_JOINT, 4, 4, 1];
-    a.preset = "drive".into();
+    a.preset = firmware::nn::format::FeaturePreset::Drive;
     a.joints = vec![4];
-    a.model = Some(dir.path().join("trained.safetensors"));
+    a.network = Some(dir.path().join("trained.safetensors"));
     // A trained network needs validation runs (or --allow-worse).
     let text = format!(
         "{:#}",

@@ -176,7 +176,7 @@ fn fuzz_wire_frame() {
     check("wire_frame", fuzz::wire_frame_target);
 }
 
-/// `import --torch IN --out OUT` on one input: an error leaves the existing OUT as it
+/// `import --network IN --out OUT` on one input: an error leaves the existing OUT as it
 /// was; a success is restored for the next case.
 fn import_keeps_output_on_error(dir: &Path, data: &[u8]) {
     use clap::Parser;
@@ -187,7 +187,7 @@ fn import_keeps_output_on_error(dir: &Path, data: &[u8]) {
     let args = [
         "model-export",
         "import",
-        "--torch",
+        "--network",
         input.to_str().unwrap(),
         "--out",
         out.to_str().unwrap(),

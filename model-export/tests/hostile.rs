@@ -98,11 +98,17 @@ fn an_output_that_is_an_input_is_refused_and_the_input_kept() {
     );
     refused(
         &[
-            "evaluate", "--model", &model, "--data", &data, "--report", &model,
+            "evaluate",
+            "--network",
+            &model,
+            "--data",
+            &data,
+            "--report",
+            &model,
         ],
         &model,
     );
-    refused(&["export", "--model", &model, "--out", &model], &model);
+    refused(&["export", "--network", &model, "--out", &model], &model);
 }
 
 #[test]
@@ -350,10 +356,10 @@ fn sil_seconds_of_1e308_is_an_error_naming_the_range() {
 fn sil_adaptation_without_a_wrist_model_is_an_error() {
     let e = format!(
         "{:#}",
-        cli(&["sil", "--adapt-time-constant-s", "2"]).expect_err("no --model")
+        cli(&["sil", "--adapt-time-constant-s", "2"]).expect_err("no --identified")
     );
     assert!(
-        e.contains("--adapt-time-constant-s") && e.contains("--model"),
+        e.contains("--adapt-time-constant-s") && e.contains("--identified"),
         "{e}"
     );
 }
@@ -470,7 +476,15 @@ fn a_3e38_base_parameter_is_an_error_naming_the_field_and_limit() {
     std::fs::write(&model, v.to_string()).unwrap();
     let d = |name: &str| dir.path().join(name).display().to_string();
     let (r, tau, code) = (robot(), d("tau.csv"), d("m.rs"));
-    let mut torque = vec!["torque", "--robot", &r, "--model", &model, "--log", &log];
+    let mut torque = vec![
+        "torque",
+        "--robot",
+        &r,
+        "--identified",
+        &model,
+        "--log",
+        &log,
+    ];
     torque.extend(reader.iter().map(String::as_str));
     torque.extend(["-o", &tau]);
     let export = [
@@ -565,7 +579,7 @@ fn evaluate_writes_its_figures_and_report_all_or_none() {
     let args = |r: &str| {
         [
             "evaluate",
-            "--model",
+            "--network",
             &model,
             "--data",
             &data,
@@ -600,7 +614,7 @@ fn export_writes_its_source_and_accuracy_all_or_none() {
     let args = |log: &str| {
         [
             "export",
-            "--model",
+            "--network",
             &model,
             "--preset",
             "feedforward",
@@ -611,7 +625,7 @@ fn export_writes_its_source_and_accuracy_all_or_none() {
             &o,
             "--accuracy-log",
             log,
-            "--accuracy-json",
+            "--report",
             &j,
         ]
         .map(str::to_string)
@@ -657,7 +671,7 @@ fn excite_writes_its_coefficients_playback_and_plot_all_or_none() {
         "0",
         "--samples",
         "50",
-        "--out-dir",
+        "--out",
         &d,
         "--name",
         "e",
@@ -691,13 +705,13 @@ fn sil_writes_its_markdown_and_json_all_or_none() {
             "sil",
             "--robot",
             &r,
-            "--model",
+            "--identified",
             &model,
             "--seconds",
             "0.05",
-            "--markdown",
+            "--report-md",
             &m,
-            "--json",
+            "--report",
             j,
         ]
         .map(str::to_string)
@@ -728,7 +742,7 @@ fn outputs_honour_the_umask_of_the_process() {
     let st = std::process::Command::new("sh")
         .args([
             "-c",
-            "umask 027 && exec \"$0\" import --torch \"$1\" --out \"$2\"",
+            "umask 027 && exec \"$0\" import --network \"$1\" --out \"$2\"",
         ])
         .arg(env!("CARGO_BIN_EXE_model-export"))
         .arg(&torch)

@@ -84,7 +84,7 @@ fn excite_refused(dir: &Path, name: &str, robot: &str, expect: &[&str]) {
             "10",
             "--baseline",
             "0",
-            "--out-dir",
+            "--out",
             &s(&out),
             "--name",
             "e",
@@ -186,8 +186,8 @@ fn every_output_equal_to_an_input_is_refused_and_the_input_kept() {
     let t = s(&trajectory);
     for args in [
         vec!["simulate", "--trajectory", &t, "-o", &t],
-        vec!["sil", "--trajectory", &t, "--json", &t],
-        vec!["sil", "--trajectory", &t, "--markdown", &t],
+        vec!["sil", "--trajectory", &t, "--report", &t],
+        vec!["sil", "--trajectory", &t, "--report-md", &t],
     ] {
         refused(&args, &["refusing to replace an input"]);
         assert_eq!(std::fs::read(&trajectory).unwrap(), b"the trajectory\n");
@@ -224,7 +224,7 @@ fn an_empty_reference_and_a_newline_in_a_preset_are_refused_and_nothing_written(
     refused(
         &[
             "import",
-            "--torch",
+            "--network",
             &s(&net),
             "--reference",
             &s(&empty),
@@ -243,7 +243,7 @@ fn an_empty_reference_and_a_newline_in_a_preset_are_refused_and_nothing_written(
     let bad = d.join("newline.onnx");
     std::fs::write(&bad, m.write_to_bytes().unwrap()).unwrap();
     refused(
-        &["import", "--torch", &s(&bad), "--out", &s(&out)],
+        &["import", "--network", &s(&bad), "--out", &s(&out)],
         &["newline.onnx", "preset", "control character"],
     );
     assert!(!out.exists());

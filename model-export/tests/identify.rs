@@ -59,7 +59,7 @@ fn cli_identify_recovers_parameters_and_torque_evaluates_them() {
     let out = bin()
         .args(["identify", "--robot", ROBOT.as_str(), "--log"])
         .arg(&log)
-        .arg("--validate")
+        .arg("--validation-log")
         .arg(&val)
         .arg("-o")
         .arg(&model)
@@ -114,7 +114,7 @@ fn cli_identify_recovers_parameters_and_torque_evaluates_them() {
             .args(EXACT)
             .arg("100");
         if with_model {
-            c.arg("--model").arg(&model);
+            c.arg("--identified").arg(&model);
         }
         let out = c.output().unwrap();
         assert!(

@@ -8,10 +8,10 @@ use test_support::default_robot_toml as default_robot_text;
 
 fn export_args(robot: Option<PathBuf>, out: PathBuf) -> ExportArgs {
     ExportArgs {
-        model: None,
+        network: None,
         dims: vec![9, 8, 8, 3],
         seed: 1,
-        preset: "paper".into(),
+        preset: firmware::nn::format::FeaturePreset::Paper,
         joints: vec![4, 5, 6],
         control_rate_hz: 100,
         precision: Precision::Int16,
@@ -23,7 +23,7 @@ fn export_args(robot: Option<PathBuf>, out: PathBuf) -> ExportArgs {
         accuracy_log: None,
         identified: None,
         chain: Default::default(),
-        accuracy_json: None,
+        report: None,
         gate_data: Vec::new(),
         allow_worse: false,
         envelope_data: Vec::new(),

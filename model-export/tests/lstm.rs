@@ -82,7 +82,7 @@ fn bad_safetensors_are_refused_with_the_tensor_named() {
     std::fs::write(&bad, &nan).unwrap();
     let out_path = dir.path().join("out.safetensors");
     let out = Command::new(env!("CARGO_BIN_EXE_model-export"))
-        .args(["import", "--torch"])
+        .args(["import", "--network"])
         .arg(&bad)
         .arg("--out")
         .arg(&out_path)
@@ -107,7 +107,7 @@ fn import_takes_a_linear_input_layer_from_the_flag_or_the_metadata() {
     let reference = fixtures().join("torch_linear_reference.csv");
     let import = |flag: Option<&str>, out: &Path| {
         let mut c = Command::new(env!("CARGO_BIN_EXE_model-export"));
-        c.args(["import", "--torch"])
+        c.args(["import", "--network"])
             .arg(&bare)
             .arg("--out")
             .arg(out)

@@ -48,7 +48,7 @@ fn trained_feedforward(dir: &Path) -> (String, String) {
 /// leaves no report.
 fn refused(net: &str, data: &str, extra: &[&str], want: &[&str], dir: &Path) {
     let report = dir.join("report.json");
-    let mut args = vec!["evaluate", "--model", net, "--data", data];
+    let mut args = vec!["evaluate", "--network", net, "--data", data];
     let r = report.display().to_string();
     args.extend_from_slice(extra);
     args.extend_from_slice(&["--report", &r]);
@@ -68,7 +68,7 @@ fn a_preset_that_does_not_match_the_network_names_both() {
     refused(
         &net,
         &data,
-        &["--preset", "paper", "--joints", "4"],
+        &["--preset", "paper_relative", "--joints", "4"],
         &[
             "ff.safetensors",
             "preset `feedforward`",

@@ -34,7 +34,7 @@ fn the_onnx_export_imports_like_its_safetensors_and_matches_pytorch() {
     let args = [
         "model-export",
         "import",
-        "--torch",
+        "--network",
         model.to_str().unwrap(),
         "--reference",
         reference.to_str().unwrap(),

@@ -186,8 +186,8 @@ fn sil_and_compnet_readme_lines_run_on_the_default_robot() {
         export,
         &[
             (
-                "--model net-ours.safetensors",
-                "--model lstm_paper/lstm.safetensors",
+                "--network net-ours.safetensors",
+                "--network lstm_paper/lstm.safetensors",
             ),
             ("robot.toml", &fixture("robots/default.toml")),
             ("VALIDATION.csv", "train_features.csv"),
@@ -227,7 +227,7 @@ fn own_robot_steps_run_on_the_ur10e_logs() {
     let steps = readme_commands("README.md", |c| {
         c.starts_with("$ME ") && c.contains("$D/ur10e.urdf")
             || c.starts_with("$ME train --data data/")
-            || c.starts_with("$ME evaluate --model lstm.safetensors --data data/d.csv")
+            || c.starts_with("$ME evaluate --network lstm.safetensors --data data/d.csv")
     });
     assert_eq!(steps.len(), 6, "{steps:#?}");
     let runs = [
@@ -318,8 +318,8 @@ fn export_then_board_build_lines_run_with_the_target() {
     let tiny = [
         "$ME simulate --seeded-trajectory 1 --joints 4,5,6 --periods 2 --seed 0 -o train_log.csv",
         "$ME identify --log train_log.csv --lock 1=0,2=0,3=0 --layout torque --header yes --torque-cols 20,21,22,23,24,25 -o wrist_model.json",
-        "$ME torque --model wrist_model.json --log train_log.csv --layout torque --header yes --torque-cols 20,21,22,23,24,25 --dataset --trim-rest-rad-s 0 --torque-cutoff-hz 0 -o train_features.csv",
-        "$ME train --data train_features.csv --preset paper --joints 4,5,6 --epochs 1 --out trained.safetensors --quiet",
+        "$ME torque --identified wrist_model.json --log train_log.csv --layout torque --header yes --torque-cols 20,21,22,23,24,25 --dataset --trim-rest-rad-s 0 --torque-cutoff-hz 0 -o train_features.csv",
+        "$ME train --data train_features.csv --preset paper_relative --joints 4,5,6 --epochs 1 --out trained.safetensors --quiet",
     ];
     for cmd in tiny {
         assert_eq!(run_shell(cmd, d, &env), 0, "{cmd}");
@@ -329,7 +329,7 @@ fn export_then_board_build_lines_run_with_the_target() {
     let budgets = root.join("host-tests/budgets.toml").display().to_string();
     let abs = format!("{}/", d.display());
     let top = readme_commands("README.md", |c| {
-        c.starts_with("model-export export --model trained.safetensors")
+        c.starts_with("model-export export --network trained.safetensors")
     });
     assert_eq!(top.len(), 1, "{top:#?}");
     let cmd = with(
@@ -337,8 +337,8 @@ fn export_then_board_build_lines_run_with_the_target() {
         &[
             ("model-export export", "$ME export"),
             (
-                "--model trained.safetensors",
-                &format!("--model {}", d.join("trained.safetensors").display()),
+                "--network trained.safetensors",
+                &format!("--network {}", d.join("trained.safetensors").display()),
             ),
             ("robot.toml", &robot),
             (

@@ -35,12 +35,28 @@ fn the_bag_identifies_and_evaluates_like_its_csv() {
     let r = robot();
     let lock = ["--lock", "1=0,2=0,3=0"];
     let csv_cols = ["--layout", "torque", "--header", "yes"];
-    let mut id_bag = vec!["identify", "--robot", &r, "--log", &bag, "--validate", &bag];
+    let mut id_bag = vec![
+        "identify",
+        "--robot",
+        &r,
+        "--log",
+        &bag,
+        "--validation-log",
+        &bag,
+    ];
     id_bag.extend(lock);
     let (m_bag, m_csv) = (p("bag.json"), p("csv.json"));
     id_bag.extend(["-o", &m_bag]);
     cli(&id_bag).unwrap();
-    let mut id_csv = vec!["identify", "--robot", &r, "--log", &csv, "--validate", &csv];
+    let mut id_csv = vec![
+        "identify",
+        "--robot",
+        &r,
+        "--log",
+        &csv,
+        "--validation-log",
+        &csv,
+    ];
     id_csv.extend(lock);
     id_csv.extend(csv_cols);
     id_csv.extend(["-o", &m_csv]);
@@ -74,11 +90,27 @@ fn the_bag_identifies_and_evaluates_like_its_csv() {
         "--torque-cutoff-hz",
         "0",
     ];
-    let mut tq = vec!["torque", "--robot", &r, "--model", &m_bag, "--log", &bag];
+    let mut tq = vec![
+        "torque",
+        "--robot",
+        &r,
+        "--identified",
+        &m_bag,
+        "--log",
+        &bag,
+    ];
     tq.extend(keep);
     tq.extend(["-o", &d_bag]);
     cli(&tq).unwrap();
-    let mut tq = vec!["torque", "--robot", &r, "--model", &m_csv, "--log", &csv];
+    let mut tq = vec![
+        "torque",
+        "--robot",
+        &r,
+        "--identified",
+        &m_csv,
+        "--log",
+        &csv,
+    ];
     tq.extend(keep);
     tq.extend(csv_cols);
     tq.extend(["-o", &d_csv]);

@@ -35,7 +35,7 @@ fn cli_simulate_identify_sil_writes_markdown_and_json() {
     let feat = p("features.csv");
     let mut tq = vec![
         "torque",
-        "--model",
+        "--identified",
         &model,
         "--log",
         &log,
@@ -54,13 +54,13 @@ fn cli_simulate_identify_sil_writes_markdown_and_json() {
     ));
     cli(&[
         "sil",
-        "--model",
+        "--identified",
         &model,
         "--seconds",
         "0.3",
-        "--markdown",
+        "--report-md",
         &md,
-        "--json",
+        "--report",
         &json,
     ])
     .unwrap();
@@ -83,5 +83,5 @@ fn cli_simulate_identify_sil_writes_markdown_and_json() {
         }
     }
     // An LSTM needs the model it corrects.
-    assert!(cli(&["sil", "--lstm", &p("x.safetensors")]).is_err());
+    assert!(cli(&["sil", "--network", &p("x.safetensors")]).is_err());
 }

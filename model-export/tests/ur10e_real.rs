@@ -38,10 +38,11 @@ fn ur10e_identification_predicts_held_out_runs() {
         cmd.arg("--log").arg(ur.join("identification").join(f));
     }
     for f in HELD_OUT {
-        cmd.arg("--validate").arg(ur.join("identification").join(f));
+        cmd.arg("--validation-log")
+            .arg(ur.join("identification").join(f));
     }
     for p in 1..=5 {
-        cmd.arg("--validate")
+        cmd.arg("--validation-log")
             .arg(ur.join(format!("validation/ur-20_01_17-p{p}.csv")));
     }
     cmd.args(["--coulomb-smoothing-rad-s", "0.02", "-o"])
@@ -138,7 +139,7 @@ fn ur10e_drive_compensator_beats_the_linear_baseline_on_a_held_out_run() {
         [
             "--coulomb-smoothing-rad-s",
             "0.02",
-            "--friction-model",
+            "--friction",
             "extended",
             "-o",
         ]
@@ -153,7 +154,7 @@ fn ur10e_drive_compensator_beats_the_linear_baseline_on_a_held_out_run() {
             os("torque"),
             os("--robot"),
             ur.join("ur10e.urdf").into(),
-            os("--model"),
+            os("--identified"),
             model.clone().into(),
             os("--layout"),
             os("ur10e"),
@@ -212,7 +213,7 @@ fn ur10e_drive_compensator_beats_the_linear_baseline_on_a_held_out_run() {
         .collect::<Vec<_>>());
     let eval_args = [
         "evaluate",
-        "--model",
+        "--network",
         &net_s,
         "--data",
         &test,

@@ -8,7 +8,7 @@
 //! - `paper`: inputs `tau_model_j*`, `tau_meas_j*`, `q_j*` (all joints of one kind, then
 //!   the next kind) → target `tau_meas_j*` one step ahead; model-only prediction
 //!   `tau_model_j*` at that step; persistence baseline `tau_meas_j*` now.
-//! - `paper_relative` (`--paper-output relative`): the same with the measured residual
+//! - `paper_relative` (`--preset paper_relative`): the same with the measured residual
 //!   `tau_meas_j*-tau_model_j*` in place of `tau_meas_j*` → target the residual
 //!   `tau_meas_j* - tau_model_j*` one step ahead ([`FeatureSpec::paper_relative`]): the
 //!   model's torque at t+1 is added back, so a network that knows nothing returns the

@@ -38,4 +38,5 @@ named!(
     excitation::Repair,
     fw_export::Precision,
     fw_export::WeightsIn,
+    firmware::nn::format::FeaturePreset,
 );

@@ -35,7 +35,7 @@ pub enum HeaderMode {
 /// Log column layout options. Columns are 1-based indices or header names; lists are
 /// comma separated, one entry per joint of the log. A ROS 2 recording (a rosbag2
 /// folder, `.mcap` or `.db3`) needs none of them: its joints are matched by name
-/// (`--topic`, `--joint-map`, `--time-source`, and `--drive-gains` when its effort is
+/// (`--topic`, `--joint-map`, `--time-source`, and `--torque-constants` when its effort is
 /// motor current).
 #[derive(Debug, Clone, Args)]
 pub struct LayoutArgs {
@@ -68,18 +68,23 @@ pub struct LayoutArgs {
         conflicts_with = "current_cols"
     )]
     pub torque_cols: Option<Vec<String>>,
-    /// Motor current columns [A] (torque = current × drive gain).
+    /// Motor current columns [A] (torque = current × torque constant).
     #[arg(long, value_name = "COLS", value_delimiter = ',')]
     pub current_cols: Option<Vec<String>>,
-    /// Drive gains [N·m/A] per joint for current columns (default: the UR10e's
-    /// 10.0,10.6956,8.4566,9.0029,9.48,10.1232 for 6 joints).
-    #[arg(long, value_name = "GAINS", value_delimiter = ',')]
+    /// Torque constants [N·m/A, joint side] per joint for current columns (default: the
+    /// UR10e's 10.0,10.6956,8.4566,9.0029,9.48,10.1232 for 6 joints).
+    #[arg(
+        long = "torque-constants",
+        alias = "drive-gains",
+        value_name = "NM_PER_A",
+        value_delimiter = ','
+    )]
     pub drive_gains: Option<Vec<f64>>,
     /// Data rows to skip at the start of each log (after any header), e.g. corrupt rows.
     #[arg(long, default_value_t = 0)]
     pub skip_rows: usize,
     /// ROS 2 recordings (rosbag2 MCAP): the sensor_msgs/msg/JointState topic. Its
-    /// effort[] is joint torque [N·m], or motor current [A] when --drive-gains is given.
+    /// effort[] is joint torque [N·m], or motor current [A] when --torque-constants is given.
     #[arg(long, default_value = rosbag::DEFAULT_TOPIC)]
     pub topic: String,
     /// ROS 2 recordings: names in the bag renamed to the robot's joint names, as
@@ -110,7 +115,7 @@ impl LayoutArgs {
                 Ok(UR10E_DRIVE_GAINS_NM_PER_A.to_vec())
             } else {
                 Err(anyhow::anyhow!(
-                    "--drive-gains is required for current columns with {n} joints"
+                    "--torque-constants is required for current columns with {n} joints"
                 ))
             }
         };

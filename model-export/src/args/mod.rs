@@ -1,4 +1,6 @@
 //! Option groups shared by several subcommands.
 pub mod choice;
+pub mod joints;
 pub mod logs;
+pub mod renamed;
 pub mod robot;

@@ -255,7 +255,7 @@ pub fn demo(a: &DemoArgs, firmware: &mut dyn FirmwareStages) -> Result<()> {
             v.excite_evaluations.to_string(),
             s("--seed"),
             s(seed),
-            s("--out-dir"),
+            s("--out"),
             p(&excite),
             s("--name"),
             s(name),
@@ -277,7 +277,7 @@ pub fn demo(a: &DemoArgs, firmware: &mut dyn FirmwareStages) -> Result<()> {
             periods.to_string(),
             s("--seed"),
             seed.to_string(),
-            s("-o"),
+            s("--out"),
             p(&logs.join(format!("{name}.csv"))),
         ]);
         pl.stage(&format!("simulate {name}"), &args)
@@ -320,11 +320,11 @@ pub fn demo(a: &DemoArgs, firmware: &mut dyn FirmwareStages) -> Result<()> {
         s("identify"),
         s("--log"),
         p(&logs.join("train.csv")),
-        s("--validate"),
+        s("--validation-log"),
         p(&logs.join("test.csv")),
         s("--lock"),
         s("1=0,2=0,3=0"),
-        s("-o"),
+        s("--out"),
         p(&identified),
     ];
     args.extend(sim_layout.iter().cloned());
@@ -336,7 +336,7 @@ pub fn demo(a: &DemoArgs, firmware: &mut dyn FirmwareStages) -> Result<()> {
     for name in lstm_logs.iter().chain(&validation_logs).chain(&test) {
         let mut args = vec![
             s("torque"),
-            s("--model"),
+            s("--identified"),
             p(&identified),
             s("--log"),
             p(&logs.join(format!("{name}.csv"))),
@@ -345,7 +345,7 @@ pub fn demo(a: &DemoArgs, firmware: &mut dyn FirmwareStages) -> Result<()> {
             s("0"),
             s("--torque-cutoff-hz"),
             s("0"),
-            s("-o"),
+            s("--out"),
             p(&data.join(format!("{name}.csv"))),
         ];
         args.extend(sim_layout.iter().cloned());
@@ -368,12 +368,18 @@ pub fn demo(a: &DemoArgs, firmware: &mut dyn FirmwareStages) -> Result<()> {
     // forms of the paper's network: `paper_relative` (the residual over the model's
     // next-step torque, exportable) and `paper_increment` (open-loop prediction only; the
     // exporter refuses it).
-    for (name, preset, paper_output) in [
-        ("paper", "paper", "next"),
-        ("paper_relative", "paper", "relative"),
-        ("paper_increment", "paper", "increment"),
-        ("feedforward", "feedforward", "next"),
+    for (name, preset) in [
+        ("paper", "paper"),
+        ("paper_relative", "paper_relative"),
+        ("paper_increment", "paper"),
+        ("feedforward", "feedforward"),
     ] {
+        // The increment form is a study form with no firmware preset.
+        let form: &[String] = if name == "paper_increment" {
+            &[s("--paper-output"), s("increment")]
+        } else {
+            &[]
+        };
         let lstm = model_dir.join(format!("lstm_{name}.safetensors"));
         let loss_plot = if name == "paper" {
             figures.join("fig10_loss.svg")
@@ -390,8 +396,10 @@ pub fn demo(a: &DemoArgs, firmware: &mut dyn FirmwareStages) -> Result<()> {
                 csv_list(&validation_logs),
                 s("--preset"),
                 s(preset),
-                s("--paper-output"),
-                s(paper_output),
+            ]
+            .into_iter()
+            .chain(form.iter().cloned())
+            .chain([
                 s("--joints"),
                 s("4,5,6"),
                 s("--epochs"),
@@ -408,23 +416,25 @@ pub fn demo(a: &DemoArgs, firmware: &mut dyn FirmwareStages) -> Result<()> {
                 p(&loss_plot),
                 s("--report"),
                 p(&model_dir.join(format!("train_{name}.json"))),
-            ],
+            ])
+            .collect::<Vec<_>>(),
         )?;
         let mut args = vec![
             s("evaluate"),
-            s("--model"),
+            s("--network"),
             p(&lstm),
             s("--data"),
             p(&test_data),
             s("--preset"),
             s(preset),
-            s("--paper-output"),
-            s(paper_output),
+        ];
+        args.extend(form.iter().cloned());
+        args.extend([
             s("--joints"),
             s("4,5,6"),
             s("--report"),
             p(&model_dir.join(format!("evaluate_{name}.json"))),
-        ];
+        ]);
         if name == "paper" {
             args.extend([s("--figures"), p(&figures)]);
         }
@@ -437,7 +447,7 @@ pub fn demo(a: &DemoArgs, firmware: &mut dyn FirmwareStages) -> Result<()> {
     let fw_model = out.join("firmware").join("model.rs");
     let mut export_args = vec![
         s("export"),
-        s("--model"),
+        s("--network"),
         p(&lstm),
         s("--identified"),
         p(&identified),
@@ -449,7 +459,7 @@ pub fn demo(a: &DemoArgs, firmware: &mut dyn FirmwareStages) -> Result<()> {
         p(&fw_model),
         s("--accuracy-log"),
         p(&test_data),
-        s("--accuracy-json"),
+        s("--report"),
         p(&model_dir.join("accuracy.json")),
         s("--gate-data"),
         csv_list(&validation_logs),
@@ -470,17 +480,17 @@ pub fn demo(a: &DemoArgs, firmware: &mut dyn FirmwareStages) -> Result<()> {
         "closed loop",
         &[
             s("sil"),
-            s("--model"),
+            s("--identified"),
             p(&identified),
-            s("--lstm"),
+            s("--network"),
             p(&lstm),
             s("--trajectory"),
             p(&excite.join("test.json")),
             s("--periods"),
             v.test_periods.to_string(),
-            s("--json"),
+            s("--report"),
             p(&sil.join("sil.json")),
-            s("--markdown"),
+            s("--report-md"),
             p(&sil.join("sil.md")),
         ],
     )?;
@@ -672,7 +682,7 @@ impl Report {
              *next-step output* predicts the torque itself (the paper's form, the one exported \
              to the firmware and run in the closed loop below); *relative output* reads the \
              measured residual τ - τ_model in place of τ and predicts the residual at t+1 over \
-             the model's torque then (`train --paper-output relative`, exportable: a network \
+             the model's torque then (`train --preset paper_relative`, exportable: a network \
              that knows nothing returns the model, and on large joints its output keeps the \
              scale of the residual, not of the torque); *increment output* predicts \
              τ(t+1) - τ(t) and adds the measured τ(t) back (`train --paper-output increment`), \

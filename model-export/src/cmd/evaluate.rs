@@ -14,9 +14,9 @@ use std::path::{Path, PathBuf};
 /// `evaluate` options.
 #[derive(Debug, Args)]
 pub struct EvaluateArgs {
-    /// The network (safetensors, or ONNX exported from PyTorch); also `--network`.
-    #[arg(long, visible_alias = "network")]
-    pub model: PathBuf,
+    /// The network (safetensors, or ONNX exported from PyTorch).
+    #[arg(long = "network", alias = "model", value_name = "FILE")]
+    pub network: PathBuf,
     /// CSV logs, each streamed whole from the zero state.
     #[arg(long, required = true, value_delimiter = ',')]
     pub data: Vec<PathBuf>,
@@ -65,9 +65,9 @@ pub struct EvaluateArgs {
 /// Runs `evaluate`.
 pub fn run(a: EvaluateArgs) -> Result<()> {
     let spec = a.features.spec()?;
-    let model = io::read_model(&a.model)?;
+    let model = io::read_model(&a.network)?;
     spec.check_model(&model)
-        .with_context(|| format!("{}", a.model.display()))?;
+        .with_context(|| format!("{}", a.network.display()))?;
     // The linear baseline, fitted on --baseline-data (before any output).
     let baseline = if a.baseline_data.is_empty() {
         None
@@ -311,7 +311,7 @@ pub fn run(a: EvaluateArgs) -> Result<()> {
         None => None,
     };
     // The figures and the report: all or none, the figures' folder made as `excite
-    // --out-dir` makes its own.
+    // --out` makes its own.
     if let (Some(dir), false) = (&a.figures, figures.is_empty()) {
         std::fs::create_dir_all(dir)
             .with_context(|| format!("creating the figures folder {}", dir.display()))?;

@@ -83,9 +83,15 @@ pub struct ExciteArgs {
     /// Acceleration limit in rad/s² (replaces the robot file's).
     #[arg(long)]
     pub qdd_max: Option<f64>,
-    /// Output directory.
-    #[arg(long, default_value = ".")]
-    pub out_dir: PathBuf,
+    /// Output folder.
+    #[arg(
+        long = "out",
+        short,
+        alias = "out-dir",
+        default_value = ".",
+        value_name = "DIR"
+    )]
+    pub out: PathBuf,
     /// Base name of the outputs: `<name>.json`, `<name>.csv`, `<name>.svg`.
     #[arg(long, default_value = "excitation")]
     pub name: String,
@@ -263,11 +269,11 @@ pub fn run(a: &ExciteArgs) -> anyhow::Result<()> {
     }
     let layout = playback_layout(robot, &rest);
     let file = ExcitationFile::new(&robot.name, layout, &limits, &extra, &d, random_cond);
-    std::fs::create_dir_all(&a.out_dir).with_context(|| format!("{}", a.out_dir.display()))?;
+    std::fs::create_dir_all(&a.out).with_context(|| format!("{}", a.out.display()))?;
     let paths = OutputPaths {
-        json: a.out_dir.join(format!("{}.json", a.name)),
-        csv: a.out_dir.join(format!("{}.csv", a.name)),
-        plot: (!a.no_plot).then(|| a.out_dir.join(format!("{}.svg", a.name))),
+        json: a.out.join(format!("{}.json", a.name)),
+        csv: a.out.join(format!("{}.csv", a.name)),
+        plot: (!a.no_plot).then(|| a.out.join(format!("{}.svg", a.name))),
     };
     let labels: Vec<String> = robot
         .modelled_joints()

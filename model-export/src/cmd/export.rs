@@ -2,6 +2,7 @@
 use crate::args::choice::named;
 use anyhow::{Context, Result, bail};
 use compnet::model::LstmModel;
+use firmware::nn::format::FeaturePreset;
 use firmware::nn::reference::LstmDims;
 use fw_export::*;
 use robot::RobotSource;
@@ -11,21 +12,21 @@ use std::path::{Path, PathBuf};
 /// `model-export export`.
 #[derive(Debug, clap::Args)]
 pub struct ExportArgs {
-    /// The network to export (safetensors written by `train` / `import`, or ONNX
-    /// exported from PyTorch; also `--network`). Without it, a
-    /// seeded PyTorch-style initialisation of the size `--dims` (for benchmarks and
-    /// the committed default until a trained model replaces it).
-    #[arg(long, visible_alias = "network")]
-    pub model: Option<PathBuf>,
-    /// Sizes `I,E,H,O` of the seeded network (without `--model`).
+    /// Network to export (safetensors written by `train` / `import`, or ONNX exported
+    /// from PyTorch). Without it, a seeded PyTorch-style initialisation of the size
+    /// `--dims` (for benchmarks and the committed default until a trained network
+    /// replaces it).
+    #[arg(long = "network", alias = "model", value_name = "FILE")]
+    pub network: Option<PathBuf>,
+    /// Sizes `I,E,H,O` of the seeded network (without `--network`).
     #[arg(long, value_delimiter = ',', default_value = "9,64,64,3")]
     pub dims: Vec<usize>,
     /// Seed of the seeded network.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Feature preset of the seeded network (`paper`, `feedforward`, `custom`).
-    #[arg(long, default_value = "paper")]
-    pub preset: String,
+    /// Feature preset of the seeded network (one of the firmware's presets).
+    #[arg(long, value_parser = named::<FeaturePreset>(), default_value = "paper")]
+    pub preset: FeaturePreset,
     /// Compensated joints, numbered from 1 like every other command's `--joints`
     /// (the generated file's `JOINT_INDICES` are their 0-based indices).
     #[arg(long, value_delimiter = ',', default_value = "4,5,6")]
@@ -73,12 +74,17 @@ pub struct ExportArgs {
     #[arg(long)]
     pub accuracy_log: Option<PathBuf>,
     /// With `--accuracy-log`: also write the accuracy rows as JSON here.
-    #[arg(long, requires = "accuracy_log")]
-    pub accuracy_json: Option<PathBuf>,
+    #[arg(
+        long = "report",
+        alias = "accuracy-json",
+        requires = "accuracy_log",
+        value_name = "FILE"
+    )]
+    pub report: Option<PathBuf>,
     /// Do-no-harm gate: validation runs (compensation datasets, whole runs the
     /// network never trained on; repeat or comma-separate). A trained network is
     /// refused when, on any of them, it is worse than the model alone on any
-    /// compensated joint. Required with `--model` unless `--allow-worse`.
+    /// compensated joint. Required with `--network` unless `--allow-worse`.
     #[arg(long = "gate-data", value_name = "CSV", value_delimiter = ',')]
     pub gate_data: Vec<PathBuf>,
     /// Export even when the gate finds the network worse than the model alone (or
@@ -117,7 +123,7 @@ fn envelope(m: &mut LstmModel, a: &ExportArgs) -> Result<()> {
             .context("--envelope-data: recording the training envelope")?;
         return Ok(());
     }
-    if a.model.is_some() && m.envelope.is_empty() && !a.no_envelope {
+    if a.network.is_some() && m.envelope.is_empty() && !a.no_envelope {
         bail!(
             "the network carries no training envelope (imported, or trained before envelopes \
              were recorded): name its training datasets with --envelope-data FILES (whole \
@@ -286,9 +292,9 @@ pub fn model(a: &ExportArgs) -> Result<LstmModel> {
     Ok(m)
 }
 
-/// The network of `--model`, or the seeded one.
+/// The network of `--network`, or the seeded one.
 fn seeded_or_read(a: &ExportArgs) -> Result<LstmModel> {
-    match &a.model {
+    match &a.network {
         Some(p) => compnet::io::read_model(p),
         None => {
             let [i, e, h, o] = a.dims[..] else {
@@ -310,11 +316,11 @@ fn seeded_or_read(a: &ExportArgs) -> Result<LstmModel> {
                 },
                 a.seed,
             );
-            m.preset = a.preset.clone();
+            m.preset = a.preset.name().into();
             // Feature names of the preset for the joint numbers (checked here), when
             // the sizes fit it.
             joint_indices(a)?;
-            let spec = compnet::data::FeatureSpec::for_preset(&a.preset, &a.joints);
+            let spec = compnet::data::FeatureSpec::for_preset(a.preset.name(), &a.joints);
             if let Some(spec) = spec.filter(|s| s.inputs.len() == i && s.targets.len() == o) {
                 m.output_names = spec.output_names();
                 m.input_names = spec.inputs;
@@ -344,18 +350,18 @@ pub fn render_export(m: &LstmModel, a: &ExportArgs) -> Result<(Exported, Placeme
             "the model predicts the next-step torque as an increment over the measured \
              torque (output `{name}`, `train --paper-output increment`): fed forward, it \
              closes a unit-gain loop on the applied torque (crates/sil/README.md); export \
-             a network trained with `--paper-output relative` or `next`, or the `drive` \
+             a network trained with `--preset paper_relative` or `paper`, or the `drive` \
              preset"
         );
     }
-    let warning = match a.model {
+    let warning = match a.network {
         Some(_) => do_no_harm(m, a)?,
         None => String::new(),
     };
     let net = Exported::new(m, a.precision).with_context(|| {
         format!(
             "exporting {}",
-            a.model
+            a.network
                 .as_ref()
                 .map_or("the seeded network".into(), |p| p.display().to_string())
         )
@@ -515,7 +521,7 @@ pub fn run(a: ExportArgs) -> Result<()> {
             seq.len()
         );
         print!("{}", accuracy_markdown(&rows));
-        if let Some(path) = &a.accuracy_json {
+        if let Some(path) = &a.report {
             accuracy_json = Some((path, serde_json::to_string_pretty(&rows)?));
         }
     }

@@ -28,7 +28,12 @@ pub struct JointArgs {
     /// comma separated (e.g. `1=0,2=-1.57,3=0`); the other joints are modelled.
     /// Without --lock, the robot file's selection applies (DH `locked_at`; URDF: all
     /// joints modelled).
-    #[arg(long, value_name = "J=Q", value_delimiter = ',')]
+    #[arg(
+        long,
+        value_name = "J=RAD",
+        value_delimiter = ',',
+        allow_hyphen_values = true
+    )]
     pub lock: Vec<String>,
     /// Model a constant torque offset per joint as well.
     #[arg(long)]
@@ -36,11 +41,11 @@ pub struct JointArgs {
     /// Smooth the Coulomb sign as tanh(qd / EPS) [rad/s] instead of a hard sign.
     #[arg(long, value_name = "EPS")]
     pub coulomb_smoothing_rad_s: Option<f64>,
-    /// Friction model: `paper` (viscous + Coulomb, as the robot file's terms say) or
+    /// Friction model: `viscous-coulomb` (the paper's terms, as the robot file's say) or
     /// `extended` (adds per joint a torque offset, velocity-weakening tanh(qd/v) terms at
     /// 0.05, 0.2 and 1 rad/s and quadratic drag qd|qd|; all linear in their coefficients
     /// and evaluated by the firmware).
-    #[arg(long, value_enum, default_value_t = FrictionModel::Paper)]
+    #[arg(long = "friction", alias = "friction-model", value_enum, default_value_t = FrictionModel::ViscousCoulomb)]
     pub friction_model: FrictionModel,
     /// The modelled chain of a URDF tree.
     #[command(flatten)]
@@ -51,24 +56,7 @@ impl JointArgs {
     /// The library's joint selection and model terms these options describe (`--lock J=Q`
     /// parsed: 1-based joint, position in rad).
     pub fn selection(&self) -> anyhow::Result<ModelSelection> {
-        let mut locked = Vec::with_capacity(self.lock.len());
-        for spec in &self.lock {
-            let (a, b) = spec
-                .split_once('=')
-                .with_context(|| format!("--lock '{spec}': expected J=Q (1-based joint, rad)"))?;
-            let i: usize = a
-                .trim()
-                .parse()
-                .with_context(|| format!("--lock '{spec}': joint"))?;
-            let q: f64 = b
-                .trim()
-                .parse()
-                .with_context(|| format!("--lock '{spec}': position"))?;
-            if i == 0 || !q.is_finite() {
-                bail!("--lock '{spec}': joint must be 1 or more and the position finite");
-            }
-            locked.push((i - 1, q));
-        }
+        let locked = crate::args::joints::lock_indices(&self.lock)?;
         Ok(ModelSelection {
             locked,
             friction_offset: self.friction_offset,
@@ -82,8 +70,10 @@ impl JointArgs {
 /// Friction basis of the identified model.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum FrictionModel {
-    /// The paper's viscous + Coulomb friction (plus what the robot file selects).
-    Paper,
+    /// Viscous + Coulomb friction, the paper's terms (plus what the robot file selects).
+    /// Old value name (warns): `paper`.
+    #[value(alias = "paper")]
+    ViscousCoulomb,
     /// The paper's terms plus offset, velocity-weakening and quadratic terms.
     Extended,
 }
@@ -108,11 +98,11 @@ pub struct IdentifyArgs {
     #[arg(long = "log", required = true, value_name = "LOG")]
     pub logs: Vec<PathBuf>,
     /// Validation logs (CSV or .mcap): predicted with the identified model, not used to fit.
-    #[arg(long = "validate", value_name = "LOG")]
+    #[arg(long = "validation-log", alias = "validate", value_name = "LOG")]
     pub validation: Vec<PathBuf>,
     /// Output model file (JSON), written atomically.
-    #[arg(long, short)]
-    pub output: PathBuf,
+    #[arg(long = "out", short, alias = "output", value_name = "FILE")]
+    pub out: PathBuf,
     /// Row weighting.
     #[arg(long, value_enum, default_value_t = WeightingArg::Wls)]
     pub weighting: WeightingArg,
@@ -142,17 +132,17 @@ pub struct TorqueArgs {
     pub robot: Option<PathBuf>,
     /// Identified model (JSON from `identify`); without it the robot's nominal
     /// parameters (and its friction, if any) are used.
-    #[arg(long)]
-    pub model: Option<PathBuf>,
+    #[arg(long = "identified", alias = "model", value_name = "FILE")]
+    pub identified: Option<PathBuf>,
     /// Input: a log (CSV, or a ROS 2 recording: rosbag2 .mcap) or a CSV of states (see
     /// --layout states).
     #[arg(long = "log", value_name = "LOG")]
     pub log: PathBuf,
     /// Output CSV: time, tau_model per modelled joint [N·m] (firmware f32 model), and
     /// the measured torque per modelled joint when the input has effort columns.
-    #[arg(long, short)]
-    pub output: PathBuf,
-    /// Joint selection and model terms (ignored with --model: the model file's are used).
+    #[arg(long = "out", short, alias = "output", value_name = "FILE")]
+    pub out: PathBuf,
+    /// Joint selection and model terms (ignored with --identified: the model file's are used).
     #[command(flatten)]
     pub joints: JointArgs,
     /// Log columns.
@@ -432,7 +422,7 @@ pub fn identify(a: &IdentifyArgs) -> anyhow::Result<()> {
     if max_diff.is_nan() || max_diff > tol {
         bail!(
             "firmware f32 model and f64 regressor disagree by {max_diff:.3e} N·m (limit {tol:.3e}); not writing {}",
-            a.output.display()
+            a.out.display()
         );
     }
 
@@ -559,8 +549,8 @@ pub fn identify(a: &IdentifyArgs) -> anyhow::Result<()> {
         &table,
     );
     println!("f32 firmware model vs f64 regressor: max |difference| {max_diff:.3e} N·m");
-    file.write(&a.output)?;
-    println!("wrote {}", a.output.display());
+    file.write(&a.out)?;
+    println!("wrote {}", a.out.display());
     Ok(())
 }
 
@@ -569,7 +559,7 @@ pub fn torque(a: &TorqueArgs) -> anyhow::Result<()> {
     let layout = a.layout.layout()?;
     let pre = a.pre.options()?;
     let source = RobotSource::from(a.robot.clone());
-    let identified = load_model_robot(&source, a.model.as_deref(), &a.joints.selection()?)?;
+    let identified = load_model_robot(&source, a.identified.as_deref(), &a.joints.selection()?)?;
     if let Some(w) = &identified.warning {
         eprintln!("warning: {w}");
     }
@@ -615,7 +605,7 @@ pub fn torque(a: &TorqueArgs) -> anyhow::Result<()> {
     } else {
         named_torque_csv(&robot, &joints, &s, &pred)
     };
-    write_atomic(&a.output, out.as_bytes())?;
+    write_atomic(&a.out, out.as_bytes())?;
     if let Some(acc) = pipeline::errors(&pred, &joints, &s) {
         let e = acc.finish();
         let names: Vec<String> = joints
@@ -628,7 +618,7 @@ pub fn torque(a: &TorqueArgs) -> anyhow::Result<()> {
             &[(file_label(&a.log), e.rms_nm, e.nrms_pct, e.samples)],
         );
     }
-    println!("wrote {} ({} samples)", a.output.display(), s.len());
+    println!("wrote {} ({} samples)", a.out.display(), s.len());
     Ok(())
 }
 

@@ -8,10 +8,10 @@ use std::path::PathBuf;
 #[derive(Debug, Args)]
 pub struct ImportArgs {
     /// Safetensors written from PyTorch, or an ONNX model (`.onnx`) exported from it.
-    #[arg(long)]
-    pub torch: PathBuf,
-    /// Our model file to write.
-    #[arg(long)]
+    #[arg(long = "network", alias = "torch", value_name = "FILE")]
+    pub network: PathBuf,
+    /// Our network file to write (safetensors).
+    #[arg(long, short)]
     pub out: PathBuf,
     /// Reference CSV (columns `x0..`, `y0..`: raw inputs and PyTorch's outputs per step);
     /// the firmware step must match it to `--tolerance` relative.
@@ -29,21 +29,21 @@ pub struct ImportArgs {
 
 /// Runs `import`.
 pub fn run(a: ImportArgs) -> Result<()> {
-    let model = if compnet::onnx::is_onnx(&a.torch) {
+    let model = if compnet::onnx::is_onnx(&a.network) {
         // The graph says which activation follows the input layer.
         if let Some(act) = &a.input_activation {
             bail!(
                 "{}: --input-activation {act} is for safetensors files; an ONNX graph names its own",
-                a.torch.display()
+                a.network.display()
             );
         }
-        compnet::onnx::read_onnx_model(&a.torch)?
+        compnet::onnx::read_onnx_model(&a.network)?
     } else {
-        io::read_model_with(&a.torch, a.input_activation.as_deref())?
+        io::read_model_with(&a.network, a.input_activation.as_deref())?
     };
     println!(
         "{}: {:?}, preset `{}`",
-        a.torch.display(),
+        a.network.display(),
         model.dims,
         model.preset
     );

@@ -12,12 +12,18 @@ use sil::wrist::{
 pub struct SilArgs {
     /// Identified model (JSON from `identify`, joints 1-3 locked at 0): the model
     /// feedforward. Without it: the single-joint and coupled-load demos.
-    #[arg(long)]
-    pub model: Option<std::path::PathBuf>,
-    /// Trained LSTM (safetensors from `train`, or its directory), preset `paper` or
-    /// `feedforward` on joints 4,5,6: the model + LSTM rows (f32 and int16).
-    #[arg(long, requires = "model")]
-    pub lstm: Option<std::path::PathBuf>,
+    #[arg(long = "identified", alias = "model", value_name = "FILE")]
+    pub identified: Option<std::path::PathBuf>,
+    /// Trained network (safetensors from `train`, or its directory), preset `paper`,
+    /// `paper_relative` or `feedforward` on joints 4,5,6: the model + LSTM rows (f32 and
+    /// int16).
+    #[arg(
+        long = "network",
+        alias = "lstm",
+        requires = "identified",
+        value_name = "FILE"
+    )]
+    pub network: Option<std::path::PathBuf>,
     /// Robot description (must be the one the model was identified for).
     #[arg(long)]
     pub robot: Option<std::path::PathBuf>,
@@ -51,17 +57,17 @@ pub struct SilArgs {
     #[arg(long)]
     pub adapt_time_constant_s: Option<f32>,
     /// Also write the table as JSON (atomically).
-    #[arg(long)]
-    pub json: Option<std::path::PathBuf>,
+    #[arg(long = "report", alias = "json", value_name = "FILE")]
+    pub report: Option<std::path::PathBuf>,
     /// Also write the table as Markdown (atomically).
-    #[arg(long)]
-    pub markdown: Option<std::path::PathBuf>,
+    #[arg(long = "report-md", alias = "markdown", value_name = "FILE")]
+    pub report_md: Option<std::path::PathBuf>,
 }
 
 /// Runs `model-export sil` on the wrist.
 pub fn run(a: &SilArgs) -> anyhow::Result<()> {
-    let Some(model_path) = &a.model else {
-        bail!("internal: the wrist SIL needs --model");
+    let Some(model_path) = &a.identified else {
+        bail!("internal: the wrist SIL needs --identified");
     };
     let source = RobotSource::from(a.robot.clone());
     let robot = a.chain.load_and_warn(&source)?;
@@ -90,7 +96,7 @@ pub fn run(a: &SilArgs) -> anyhow::Result<()> {
         setup.duration_s = s.min(setup.duration_s);
     }
     let model = identified_wrist_model(&source, model_path, &a.chain.selection()?)?;
-    let lstm = a.lstm.as_deref().map(WristLstm::load).transpose()?;
+    let lstm = a.network.as_deref().map(WristLstm::load).transpose()?;
     let modes: Vec<WristFeedforward> = WristFeedforward::ALL
         .into_iter()
         .filter(|m| {
@@ -134,7 +140,7 @@ pub fn run(a: &SilArgs) -> anyhow::Result<()> {
         a.compensator_hz,
         a.seed,
         model_path.display(),
-        a.lstm
+        a.network
             .as_ref()
             .map(|p| format!(
                 ", LSTM {} (preset {:?})",
@@ -152,7 +158,7 @@ pub fn run(a: &SilArgs) -> anyhow::Result<()> {
     )?;
     let md = format!("{title}\n\n{}", markdown_table(&reports));
     print!("{md}");
-    let json = match &a.json {
+    let json = match &a.report {
         Some(_) => Some(serde_json::to_string_pretty(&WristReport {
             title: title.clone(),
             duration_s: setup.duration_s,
@@ -164,8 +170,8 @@ pub fn run(a: &SilArgs) -> anyhow::Result<()> {
     };
     // The Markdown and the JSON table: both or neither.
     let files: Vec<(&std::path::Path, &[u8])> = [
-        a.markdown.as_deref().map(|p| (p, md.as_bytes())),
-        a.json.as_deref().zip(json.as_deref().map(str::as_bytes)),
+        a.report_md.as_deref().map(|p| (p, md.as_bytes())),
+        a.report.as_deref().zip(json.as_deref().map(str::as_bytes)),
     ]
     .into_iter()
     .flatten()

@@ -112,9 +112,18 @@ pub struct SimulateArgs {
     /// paper's wrist: 4,5,6.
     #[arg(long, value_delimiter = ',')]
     pub joints: Vec<usize>,
-    /// Positions of the joints not driven [rad], one per robot joint (comma separated);
-    /// default: the excitation file's `layout.fixed_rad`, else all zero.
-    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    /// Joints not driven held at an angle: `J=RAD` with 1-based joint J, comma separated
+    /// (e.g. `1=0,2=-1.57`); the others not driven stay at the excitation file's
+    /// `layout.fixed_rad`, else zero.
+    #[arg(
+        long,
+        value_name = "J=RAD",
+        value_delimiter = ',',
+        allow_hyphen_values = true
+    )]
+    pub lock: Vec<String>,
+    /// Old spelling (hidden, warns): the positions of all joints [rad], one per robot joint.
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true, hide = true)]
     pub locked_rad: Vec<f64>,
     /// Periods of a Fourier trajectory to run.
     #[arg(long, default_value_t = 1)]
@@ -123,8 +132,8 @@ pub struct SimulateArgs {
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
     /// Output CSV (written atomically).
-    #[arg(long, short)]
-    pub output: PathBuf,
+    #[arg(long = "out", short, alias = "output", value_name = "FILE")]
+    pub out: PathBuf,
 }
 
 /// `model-export plant-report`.
@@ -232,12 +241,24 @@ pub fn run_simulate(args: &SimulateArgs) -> anyhow::Result<()> {
     } else if let Some((_, fixed)) = layout {
         cfg.locked_position_rad = fixed;
     }
+    let locks = crate::args::joints::lock_indices(&args.lock)?;
+    if !locks.is_empty() && cfg.locked_position_rad.len() != dof {
+        cfg.locked_position_rad = vec![0.0; dof];
+    }
+    for (index, q_rad) in locks {
+        ensure!(
+            index < dof,
+            "--lock: joint {} of a {dof}-joint robot",
+            index + 1
+        );
+        cfg.locked_position_rad[index] = q_rad;
+    }
     let log = plant_sim::simulate(&arm, &plant, &traj, &cfg)
         .with_context(|| format!("{}", source.display()))?;
-    log.save(&args.output)?;
+    log.save(&args.out)?;
     eprintln!(
         "wrote {} ({} samples at {} Hz, {:.1} s)",
-        args.output.display(),
+        args.out.display(),
         log.rows.len(),
         cfg.controller_rate_hz,
         traj.duration_s()

@@ -1,22 +1,28 @@
 //! `model-export train`: fit the compensation network on logs.
+use crate::args::choice::named;
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use compnet::data::{FeatureSpec, Sequence, Table};
 use compnet::report::{AdaptationRef, TrainReport, TrainTestBlock};
 use compnet::{adaptation, eval, io, plot, train};
 use firmware::adaptation::AdaptationConfig;
+use firmware::nn::format::FeaturePreset;
 use std::path::{Path, PathBuf};
 
 /// Which columns the network reads and predicts.
 #[derive(Debug, Args)]
 pub struct FeatureArgs {
-    /// Feature preset: `paper` (tau_model, tau_meas, q of each joint -> next-step tau_meas;
-    /// forms: `--paper-output`), `feedforward` (tau_model, q, qd -> tau_meas - tau_model),
-    /// `drive` (what the drive knows before the tick and the residual it measured over the
-    /// previous tick -> tau_meas - tau_model) or `custom` (--inputs/--targets).
-    #[arg(long, default_value = "paper")]
-    pub preset: String,
-    /// Joints for the presets (columns `q_j4`, `qd_j4`, `tau_meas_j4`, `tau_model_j4`, ...).
+    /// Feature preset, one of the firmware's: `paper` (the paper's form: tau_model,
+    /// tau_meas, q of each joint -> next-step tau_meas), `paper_relative` (the same inputs
+    /// with the measured residual -> the residual over the model's next-step torque: a
+    /// network that knows nothing returns the model), `feedforward` (tau_model, q, qd ->
+    /// tau_meas - tau_model), `drive` (what the drive knows before the tick and the
+    /// residual it measured over the previous tick -> tau_meas - tau_model) or `custom`
+    /// (--inputs/--targets).
+    #[arg(long, value_parser = named::<FeaturePreset>(), default_value = "paper_relative")]
+    pub preset: FeaturePreset,
+    /// Joints for the presets (1-based robot joint numbers; columns `q_j4`, `qd_j4`,
+    /// `tau_meas_j4`, `tau_model_j4`, ...).
     #[arg(long, value_delimiter = ',', default_value = "4,5,6")]
     pub joints: Vec<usize>,
     /// `custom`: input columns.
@@ -28,42 +34,44 @@ pub struct FeatureArgs {
     /// `custom`: steps ahead the targets are taken.
     #[arg(long, default_value_t = 0)]
     pub shift: usize,
-    /// `paper`: how the network's output gives the next-step torque: `relative` (the
-    /// default, preset `paper_relative`: the measured residual in, the residual over the
-    /// model's next-step torque out; a network that knows nothing returns the model, and
-    /// on large joints the output keeps the scale of the residual), `next` (the torque
-    /// itself, the paper's form) or `increment` (the measured torque now plus the output:
-    /// beats persistence in open loop, but fed forward it closes a unit-gain loop on the
-    /// applied torque; not exportable).
-    #[arg(long, value_enum, default_value_t = PaperOutput::Relative)]
-    pub paper_output: PaperOutput,
+    /// Old spelling of the paper forms (hidden, warns): `next` is `--preset paper`,
+    /// `relative` is `--preset paper_relative`, `increment` (the measured torque now plus
+    /// the output: beats persistence in open loop, but fed forward it closes a unit-gain
+    /// loop on the applied torque) is a study form with no firmware preset.
+    #[arg(long, value_enum, hide = true)]
+    pub paper_output: Option<PaperOutput>,
 }
 
-/// How a `paper` network's output gives the next-step torque.
+/// The old `--paper-output` values.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum PaperOutput {
-    /// The next-step torque itself.
+    /// The next-step torque itself (`--preset paper`).
     Next,
-    /// The increment over the measured torque now.
+    /// The increment over the measured torque now (a study form, not exportable).
     Increment,
-    /// The residual over the model's torque at the next step.
+    /// The residual over the model's torque at the next step (`--preset paper_relative`).
     Relative,
 }
 
 impl FeatureArgs {
     /// The feature specification these options choose.
     pub fn spec(&self) -> Result<FeatureSpec> {
-        match self.preset.as_str() {
-            "paper" if self.paper_output == PaperOutput::Increment => {
-                Ok(FeatureSpec::paper_increment(&self.joints))
+        let paper = matches!(
+            self.preset,
+            FeaturePreset::Paper | FeaturePreset::PaperRelative
+        );
+        let preset = match self.paper_output {
+            Some(PaperOutput::Increment) if paper => {
+                return Ok(FeatureSpec::paper_increment(&self.joints));
             }
-            "paper" if self.paper_output == PaperOutput::Relative => {
-                Ok(FeatureSpec::paper_relative(&self.joints))
-            }
-            "custom" => FeatureSpec::custom(&self.inputs, &self.targets, self.shift),
-            other => FeatureSpec::for_preset(other, &self.joints).with_context(|| {
-                format!("unknown preset `{other}` (paper, feedforward, drive, custom)")
-            }),
+            Some(PaperOutput::Next) if paper => FeaturePreset::Paper,
+            Some(PaperOutput::Relative) if paper => FeaturePreset::PaperRelative,
+            Some(_) | None => self.preset,
+        };
+        match preset {
+            FeaturePreset::Custom => FeatureSpec::custom(&self.inputs, &self.targets, self.shift),
+            other => FeatureSpec::for_preset(other.name(), &self.joints)
+                .with_context(|| format!("preset `{}` has no feature layout", other.name())),
         }
     }
 }
