@@ -546,9 +546,9 @@ fn the_gate_refuses_empty_header_only_one_row_and_still_gate_data() {
     let (m, run) = gate_case(dir.path());
     let mut a = args(out.clone(), Precision::Int16);
     a.dims = vec![DRIVE_INPUTS_PER_JOINT, 4, 4, 1];
-    a.preset = "drive".into();
+    a.preset = firmware::nn::format::FeaturePreset::Drive;
     a.joints = vec![4];
-    a.model = Some(dir.path().join("trained.safetensors"));
+    a.network = Some(dir.path().join("trained.safetensors"));
     let text = std::fs::read_to_string(&run).unwrap();
     let mut lines = text.lines();
     let header = lines.next().unwrap().to_string();
