@@ -19,7 +19,7 @@ fn dev_profile(c: &ReadmeCommand) -> String {
 }
 
 /// `model-export sil` (sil and firmware READMEs, 2 s of simulated time instead of the
-/// 30 s default) and `plant-report --ablation` (plant-sim README) through `cargo run`.
+/// 30 s default) and `plant-report --ablation` (docs/studies/plant-residual.md) through `cargo run`.
 #[test]
 fn cargo_run_model_export_lines_run() {
     let root = workspace_root();
@@ -39,7 +39,7 @@ fn cargo_run_model_export_lines_run() {
     );
     run_ok(&c, &format!("{} --seconds 2", dev_profile(&c)), root, &[]);
     let c = readme_command(
-        "crates/plant-sim/README.md",
+        "docs/studies/plant-residual.md",
         "cargo run --release -p model-export -- plant-report --ablation",
     );
     run_ok(&c, &dev_profile(&c), root, &[]);
@@ -67,7 +67,7 @@ fn model_export_examples_run() {
     );
     run_ok(&c, &dev_profile(&c), root, &[]);
     let c = readme_command(
-        "crates/excitation/README.md",
+        "docs/studies/excitation-vs-random.md",
         "cargo run --profile host -p model-export --example excite_probe -- floors",
     );
     run_ok(&c, &format!("{} 1 60", dev_profile(&c)), root, &[]);

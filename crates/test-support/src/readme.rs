@@ -13,7 +13,8 @@
 //!   cargo subcommand; `cargo board-build` (an alias of the workspace) is a command.
 //!
 //! Whitespace runs are folded to one space. READMEs are every `README.md` under the
-//! workspace root but `target/` and hidden folders.
+//! workspace root but `target/` and hidden folders, and every `.md` file under `docs/`
+//! (the studies and design notes the READMEs point to).
 
 use std::path::{Path, PathBuf};
 
@@ -28,8 +29,10 @@ pub struct ReadmeCommand {
     pub command: String,
 }
 
-/// Every `README.md` under `root` but `target/` and hidden folders, sorted.
+/// Every `README.md` under `root` but `target/` and hidden folders, and every `.md` under
+/// `root/docs`, sorted.
 pub fn readme_files(root: &Path) -> Vec<PathBuf> {
+    let docs = root.join("docs");
     let mut out = Vec::new();
     let mut stack = vec![root.to_path_buf()];
     while let Some(dir) = stack.pop() {
@@ -43,7 +46,7 @@ pub fn readme_files(root: &Path) -> Vec<PathBuf> {
                 if !name.starts_with('.') && name != "target" {
                     stack.push(path);
                 }
-            } else if name == "README.md" {
+            } else if name == "README.md" || (name.ends_with(".md") && path.starts_with(&docs)) {
                 out.push(path);
             }
         }
