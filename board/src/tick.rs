@@ -51,7 +51,9 @@ impl MicrosClock {
     /// Microseconds since [`MicrosClock::new`] (wrapping).
     pub fn now_us(&mut self) -> u32 {
         let c = cycles();
-        let elapsed = c.wrapping_sub(self.last_cycles).saturating_add(self.spare_cycles);
+        let elapsed = c
+            .wrapping_sub(self.last_cycles)
+            .saturating_add(self.spare_cycles);
         self.last_cycles = c;
         self.now_us = self.now_us.wrapping_add(elapsed / self.cycles_per_us);
         self.spare_cycles = elapsed % self.cycles_per_us;
