@@ -94,7 +94,9 @@ pub fn parse_candump_line(line: &str) -> Result<Option<CanFdFrame>> {
     // Classic frames may separate bytes with dots.
     let hex: String = data.chars().filter(|&c| c != '.').collect();
     ensure!(
-        hex.len() % 2 == 0 && hex.len() <= 128 && hex.chars().all(|c| c.is_ascii_hexdigit()),
+        hex.len().is_multiple_of(2)
+            && hex.len() <= 128
+            && hex.chars().all(|c| c.is_ascii_hexdigit()),
         "the data: `{data}` is not whole hex bytes (at most 64)"
     );
     let bytes: Vec<u8> = (0..hex.len() / 2)
