@@ -185,13 +185,11 @@ fn sil_candump_telemetry_torque_train_evaluate() {
     let k = (k..hostile.len())
         .find(|&i| hostile[i].contains(" 101##1"))
         .unwrap();
-    let flip = |l: &str| {
-        let mut c: Vec<char> = l.chars().collect();
-        let i = c.len() - 20;
-        c[i] = if c[i] == '0' { '1' } else { '0' };
-        c.into_iter().collect::<String>()
-    };
-    hostile[k] = flip(&hostile[k]);
+    // One hex digit of the payload, before the MAC.
+    let mut c: Vec<char> = hostile[k].chars().collect();
+    let i = c.len() - 20;
+    c[i] = if c[i] == '0' { '1' } else { '0' };
+    hostile[k] = c.into_iter().collect();
     let replayed = hostile[10].clone();
     hostile.push(replayed);
     hostile.push(format!("(9.0) can0 102##1{}", "00".repeat(48)));
