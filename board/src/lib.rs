@@ -27,6 +27,9 @@ pub mod config_block;
 pub mod encoder_spi;
 #[cfg(target_os = "none")]
 #[allow(unsafe_code)]
+pub mod fdcan;
+#[cfg(target_os = "none")]
+#[allow(unsafe_code)]
 pub mod pins;
 #[cfg(target_os = "none")]
 #[allow(unsafe_code)]

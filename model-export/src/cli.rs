@@ -69,6 +69,9 @@ pub enum Command {
     /// Write a drive's configuration block (joint number, the robot's state-bus key)
     /// as a `.bin` and print the `probe-rs download` line that flashes it.
     Provision(crate::cmd::provision::ProvisionArgs),
+    /// Read the drives' telemetry (state frames, compensator flags) from a `candump -l`
+    /// log of the CAN-FD state bus into a log (CSV) that `torque`, `train` and `evaluate` read.
+    Telemetry(crate::cmd::telemetry::TelemetryArgs),
 }
 
 /// The files a command reads and the files it writes (for
@@ -142,18 +145,26 @@ fn files(command: &Command) -> (Vec<&Path>, Vec<&Path>) {
             vec![&a.out],
         ),
         Command::Sil { wrist: a } => (
-            [&a.identified, &a.network, &a.robot, &a.plant, &a.trajectory]
-                .into_iter()
-                .flatten()
-                .map(PathBuf::as_path)
-                .collect(),
-            [&a.report, &a.report_md]
+            [
+                &a.identified,
+                &a.network,
+                &a.robot,
+                &a.plant,
+                &a.trajectory,
+                &a.key_file,
+            ]
+            .into_iter()
+            .flatten()
+            .map(PathBuf::as_path)
+            .collect(),
+            [&a.report, &a.report_md, &a.candump]
                 .into_iter()
                 .flatten()
                 .map(PathBuf::as_path)
                 .collect(),
         ),
         Command::Provision(a) => (vec![&a.key_file], vec![&a.out]),
+        Command::Telemetry(a) => (vec![&a.log, &a.key_file], vec![&a.out]),
         _ => (Vec::new(), Vec::new()),
     }
 }
@@ -223,6 +234,8 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Sil { wrist } => {
             if wrist.identified.is_some() {
                 crate::cmd::sil::run(&wrist)
+            } else if wrist.candump.is_some() {
+                anyhow::bail!("--candump is for the wrist SIL: give --identified too")
             } else if wrist.adapt_time_constant_s.is_some() {
                 anyhow::bail!("--adapt-time-constant-s is for the wrist SIL: give --identified too")
             } else {
@@ -238,6 +251,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::PlantReport(args) => crate::cmd::simulate::run_plant_report(&args),
         Command::Export(a) => crate::cmd::export::run(a),
         Command::Provision(a) => crate::cmd::provision::run(&a),
+        Command::Telemetry(a) => crate::cmd::telemetry::run(&a),
         Command::Demo(a) => crate::cmd::demo::demo(&a, &mut crate::cmd::demo::WithoutCargo),
     }
 }

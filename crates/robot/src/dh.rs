@@ -176,9 +176,10 @@ impl ProfileToml {
         p.max_message_age_ticks = self
             .max_message_age_ticks
             .unwrap_or(p.max_message_age_ticks);
-        let ppm = match p.bus_clock {
-            BusClock::FreeRunning { max_rate_error_ppm } => max_rate_error_ppm,
-            BusClock::Synchronised => 0,
+        let ppm = match (p.bus_clock, JointProfile::FREE_RUNNING) {
+            (BusClock::FreeRunning { max_rate_error_ppm }, _)
+            | (_, BusClock::FreeRunning { max_rate_error_ppm }) => max_rate_error_ppm,
+            _ => 0,
         };
         let ppm = self.max_rate_error_ppm.unwrap_or(ppm);
         p.bus_clock = match (self.bus_clock, p.bus_clock) {

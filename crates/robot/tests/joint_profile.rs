@@ -24,8 +24,15 @@ fn the_default_robots_wrist_profiles_are_the_boards_and_the_compiled_models() {
         assert_eq!(j.profile, None, "{}", j.name);
         assert_eq!(j.drive_profile(), JointProfile::BOARD);
     }
+    // The wrist asks for free-running bus clocks (the generic board's UART has no
+    // SYNC); every other field is the board's.
+    let uart = JointProfile {
+        bus_clock: JointProfile::FREE_RUNNING,
+        ..JointProfile::BOARD
+    };
+    assert_eq!(JointProfile::BOARD.bus_clock, BusClock::Synchronised);
     for j in &robot.joints[3..] {
-        assert_eq!(j.profile, Some(JointProfile::BOARD), "{}", j.name);
+        assert_eq!(j.profile, Some(uart), "{}", j.name);
     }
     // The committed default model holds the default robot's wrist profiles: the board
     // reads the same definition the exporter read.

@@ -358,7 +358,7 @@ impl<const J: usize, M: TorquePredictor<J>, L: TorquePredictor<J>> SimulatedJoin
                         faults |= o.faults;
                     }
                     source = Some(o.source);
-                    bus.send(slot.slot, t.now_us, next);
+                    bus.send_frame(slot.slot, t.now_us, next, o.faults, o.torque_nm);
                 }
                 // No configured joint: no feedforward, no state frames.
                 _ => {
@@ -469,6 +469,31 @@ where
     M: TorquePredictor<J>,
     L: TorquePredictor<J>,
 {
+    let mut bus = StateBus::default();
+    run_joints_on(
+        joints,
+        mechanism,
+        reference,
+        compensator_hz,
+        duration_s,
+        &mut bus,
+    )
+}
+
+/// [`run_joints`] on the state bus `bus` (one that records: the run's frames in the
+/// drive's output format, [`StateBus::recording`]).
+pub fn run_joints_on<const J: usize, M, L>(
+    joints: &mut [SimulatedJoint<J, M, L>],
+    mechanism: &mut impl Mechanism<J>,
+    reference: impl Fn(f64) -> [(f64, f64, f64); J],
+    compensator_hz: u32,
+    duration_s: f64,
+    bus: &mut StateBus,
+) -> anyhow::Result<Vec<JointRun>>
+where
+    M: TorquePredictor<J>,
+    L: TorquePredictor<J>,
+{
     anyhow::ensure!(joints.len() == J, "{} joints for {J} slots", joints.len());
     let pwm_hz = joints[0].plant.pwm_hz;
     let substeps = joints[0].plant.substeps.max(1);
@@ -491,7 +516,6 @@ where
     let r0 = reference(0.0);
     let mut q: [f64; J] = r0.map(|r| r.0);
     let mut qd: [f64; J] = r0.map(|r| r.1);
-    let mut bus = StateBus::default();
     let (mut se, mut max_e, mut siq, mut sfb) = ([0.0f64; J], [0.0f64; J], [0.0; J], [0.0; J]);
     let mut faults = [FaultFlags::NONE; J];
     let mut sources = [[0u64; 3]; J];
@@ -529,7 +553,7 @@ where
                     qdd_rad_s2: r[j].2 as f32,
                 },
                 q[j],
-                &mut bus,
+                bus,
             );
             faults[j] |= step.faults;
             if step.source.is_some() && step.faults.contains(FaultFlags::ENVELOPE_OUTSIDE) {

@@ -17,6 +17,7 @@
 #![deny(unsafe_code)]
 #![warn(missing_docs)]
 
+pub mod candump;
 pub mod joint;
 pub mod multi;
 pub mod plant;
@@ -261,10 +262,21 @@ pub fn run_single_joint(
 /// The state bus between the joints' firmware instances (as over EtherCAT): the frames
 /// sent at one compensator tick travel as wire bytes and arrive at the next (one tick of
 /// latency), at every compensator but the sender's.
-#[derive(Debug, Default)]
+#[derive(Default)]
 pub struct StateBus {
     in_flight: Vec<[u8; JointStateMessage::WIRE_LEN]>,
     sequence: u16,
+    recorder: Option<candump::CandumpRecorder>,
+}
+
+impl std::fmt::Debug for StateBus {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("StateBus")
+            .field("in_flight", &self.in_flight.len())
+            .field("sequence", &self.sequence)
+            .field("recording", &self.recorder.is_some())
+            .finish()
+    }
 }
 
 impl StateBus {
@@ -280,6 +292,36 @@ impl StateBus {
             .collect::<anyhow::Result<Vec<_>>>()?;
         self.sequence = self.sequence.wrapping_add(1);
         Ok(msgs)
+    }
+
+    /// A bus that also records every state frame sent, as the drives would put it on
+    /// the CAN-FD bus ([`candump::CandumpRecorder`]).
+    pub fn recording(recorder: candump::CandumpRecorder) -> Self {
+        Self {
+            recorder: Some(recorder),
+            ..Self::default()
+        }
+    }
+
+    /// The recorder, if this bus records.
+    pub fn recorder(&self) -> Option<&candump::CandumpRecorder> {
+        self.recorder.as_ref()
+    }
+
+    /// Sends joint `joint`'s state of this tick with its compensator's `faults` and
+    /// feedforward `feedforward_nm` (recorded when the bus records).
+    pub fn send_frame(
+        &mut self,
+        joint: usize,
+        timestamp_us: u32,
+        state: JointState,
+        faults: FaultFlags,
+        feedforward_nm: f32,
+    ) {
+        if let Some(r) = self.recorder.as_mut() {
+            r.record(joint, timestamp_us, state, faults, feedforward_nm);
+        }
+        self.send(joint, timestamp_us, state);
     }
 
     /// Sends joint `joint`'s state of this tick.

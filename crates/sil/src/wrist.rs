@@ -17,9 +17,11 @@
 //! arranged/quantised at run time by `fw_export`).
 
 use super::joint::{
-    BOARD_PWM_HZ, Mechanism, SimulatedHardware, SimulatedJoint, config_block_of_index, run_joints,
+    BOARD_PWM_HZ, Mechanism, SimulatedHardware, SimulatedJoint, config_block_of_index,
+    run_joints_on,
 };
 use super::plant::JointPlantConfig;
+use crate::StateBus;
 use anyhow::{Context, bail, ensure};
 use compnet::data::FeatureSpec;
 use compnet::model::LstmModel;
@@ -449,7 +451,21 @@ fn reference(traj: &CommandedTrajectory, t: f64) -> [(f64, f64, f64); J] {
 /// joints).
 pub fn run_wrist_with<M, L>(
     setup: &WristSetup,
+    make: impl FnMut(usize) -> anyhow::Result<(M, L)>,
+) -> anyhow::Result<[WristJointReport; J]>
+where
+    M: TorquePredictor<J>,
+    L: TorquePredictor<J>,
+{
+    run_wrist_with_on(setup, make, &mut StateBus::default())
+}
+
+/// [`run_wrist_with`] on the state bus `bus` (a recording one keeps the run's frames
+/// in the drive's output format).
+pub fn run_wrist_with_on<M, L>(
+    setup: &WristSetup,
     mut make: impl FnMut(usize) -> anyhow::Result<(M, L)>,
+    bus: &mut StateBus,
 ) -> anyhow::Result<[WristJointReport; J]>
 where
     M: TorquePredictor<J>,
@@ -483,12 +499,13 @@ where
         qdd: [0.0; J],
         friction_energy_j: [0.0; J],
     };
-    let runs = run_joints(
+    let runs = run_joints_on(
         &mut joints,
         &mut plant,
         |t| reference(&setup.trajectory, t),
         setup.compensator_hz,
         setup.duration_s.min(setup.trajectory.duration_s()),
+        bus,
     )?;
     Ok(std::array::from_fn(|k| WristJointReport {
         joint: WRIST_JOINTS[k] + 1,
@@ -550,12 +567,24 @@ pub fn run_wrist(
     model: Option<&RigidBodyModel<J>>,
     lstm: Option<&WristLstm>,
 ) -> anyhow::Result<[WristJointReport; J]> {
+    run_wrist_on(setup, mode, model, lstm, &mut StateBus::default())
+}
+
+/// [`run_wrist`] on the state bus `bus` (a recording one keeps the run's frames in
+/// the drive's output format: `sil --candump`).
+pub fn run_wrist_on(
+    setup: &WristSetup,
+    mode: WristFeedforward,
+    model: Option<&RigidBodyModel<J>>,
+    lstm: Option<&WristLstm>,
+    bus: &mut StateBus,
+) -> anyhow::Result<[WristJointReport; J]> {
     let need_model = || model.copied().context("this feedforward needs --model");
     match mode {
-        WristFeedforward::None => run_wrist_with(setup, |_| Ok((NoPredictor, NoPredictor))),
+        WristFeedforward::None => run_wrist_with_on(setup, |_| Ok((NoPredictor, NoPredictor)), bus),
         WristFeedforward::Model => {
             let m = need_model()?;
-            run_wrist_with(setup, |_| Ok((m, NoPredictor)))
+            run_wrist_with_on(setup, |_| Ok((m, NoPredictor)), bus)
         }
         WristFeedforward::ModelLstmF32 | WristFeedforward::ModelLstmInt16 => {
             let m = need_model()?;
@@ -579,21 +608,30 @@ pub fn run_wrist(
                 {
                     row.copy_from_slice(w);
                 }
-                run_wrist_with(setup, |_| {
-                    let p =
-                        LstmPredictor::<_, J, { DRIVE_INPUTS_PER_JOINT * J }>::new(&net, preset)
-                            .context(layout)?
-                            .with_linear_stage(linear)
-                            .with_envelope(envelope);
-                    Ok((m, p))
-                })
-            } else {
-                run_wrist_with(setup, |_| {
-                    let p = LstmPredictor::<_, J, { 3 * J }>::new(&net, preset)
+                run_wrist_with_on(
+                    setup,
+                    |_| {
+                        let p = LstmPredictor::<_, J, { DRIVE_INPUTS_PER_JOINT * J }>::new(
+                            &net, preset,
+                        )
                         .context(layout)?
+                        .with_linear_stage(linear)
                         .with_envelope(envelope);
-                    Ok((m, p))
-                })
+                        Ok((m, p))
+                    },
+                    bus,
+                )
+            } else {
+                run_wrist_with_on(
+                    setup,
+                    |_| {
+                        let p = LstmPredictor::<_, J, { 3 * J }>::new(&net, preset)
+                            .context(layout)?
+                            .with_envelope(envelope);
+                        Ok((m, p))
+                    },
+                    bus,
+                )
             }
         }
     }

@@ -73,8 +73,9 @@ pub struct JointProfile {
 
 impl JointProfile {
     /// The joint-drive board's values: the wrist motor ([`MotorParameters::BOARD`]),
-    /// a 100:1 gear, the cascade at 5 kHz, the UART state bus at 2 Mbaud with
-    /// free-running clocks, the friction adaptation off (+-10 N*m when a time constant
+    /// a 100:1 gear, the cascade at 5 kHz, the state bus on the SYNC master's bus
+    /// time (CAN-FD; a frame's age is bounded, [`super::canfd`]), 2 Mbaud where a
+    /// board uses the UART, the friction adaptation off (+-10 N*m when a time constant
     /// turns it on). The default of every field a robot description leaves out.
     pub const BOARD: JointProfile = JointProfile {
         motor: MotorParameters::BOARD,
@@ -105,13 +106,11 @@ impl JointProfile {
             max_abs_tau_nm: 300.0,
         },
         watchdog_ticks: 3,
-        // The UART has no distributed clock: each sender's clock offset is learned
-        // when its stream starts and followed within the two HSI16 oscillators'
-        // tolerance (+-1 % each); a frame more than 3 ticks off that is stale.
+        // One bus time for every node (SYNC every tick, `canfd::BusTime`): a frame
+        // more than 3 ticks older than the local bus time is stale. Free-running
+        // clocks stay selectable per joint (`FREE_RUNNING`, a UART bus without SYNC).
         max_message_age_ticks: 3,
-        bus_clock: BusClock::FreeRunning {
-            max_rate_error_ppm: 20_000,
-        },
+        bus_clock: BusClock::Synchronised,
         max_torque_nm: 120.0,
         max_torque_rate_nm_s: 2_000.0,
         max_lstm_correction_nm: 30.0,
@@ -128,6 +127,13 @@ impl JointProfile {
         // Off unless a robot description gives a window; when on, a full fade takes
         // 0.5 s and the gain holds within 0.05 of the window's best blend.
         monitor: MonitorConfig::OFF,
+    };
+
+    /// The free-running bus clock (no SYNC): each sender's clock offset learned when
+    /// its stream starts and followed within the two HSI16 oscillators' tolerance
+    /// (+-1 % each). What it cannot catch: the board README, "Free-running mode".
+    pub const FREE_RUNNING: BusClock = BusClock::FreeRunning {
+        max_rate_error_ppm: 20_000,
     };
 
     /// Joint-side torque per A of motor q current, N*m/A (motor torque constant x
@@ -310,6 +316,19 @@ mod tests {
         assert_eq!(c.max_current_a, 12.0);
         // A zero rate does not divide by zero.
         assert_eq!(p.compensator_config(0, 0).max_message_age_us, 0);
+        // SYNC is the default; the free-running clock stays selectable and valid.
+        assert_eq!(c.bus_clock, BusClock::Synchronised);
+        let free = JointProfile {
+            bus_clock: JointProfile::FREE_RUNNING,
+            ..p
+        };
+        assert_eq!(free.invalid_field(), None);
+        assert_eq!(
+            free.compensator_config(100, 0).bus_clock,
+            BusClock::FreeRunning {
+                max_rate_error_ppm: 20_000
+            }
+        );
     }
 
     #[test]

@@ -9,4 +9,5 @@ pub mod import;
 pub mod provision;
 pub mod sil;
 pub mod simulate;
+pub mod telemetry;
 pub mod train;

@@ -4,7 +4,7 @@ use plant_sim::PlantParameters;
 use robot::RobotSource;
 use sil::wrist::{
     J, ModeReport, WristFeedforward, WristJointReport, WristLstm, WristReport, WristSetup,
-    identified_wrist_model, markdown_table, run_wrist,
+    identified_wrist_model, markdown_table, run_wrist_on,
 };
 
 /// `model-export sil` options.
@@ -62,6 +62,15 @@ pub struct SilArgs {
     /// Also write the table as Markdown (atomically).
     #[arg(long = "report-md", alias = "markdown", value_name = "FILE")]
     pub report_md: Option<std::path::PathBuf>,
+    /// Wrist SIL: also write the last feedforward's run in the drive's output format,
+    /// a `candump -l` log of the CAN-FD frames its boards send (SYNC, state frames with
+    /// compensator flags and feedforward), sealed with `--key-file`'s key; `telemetry`
+    /// reads it.
+    #[arg(long, value_name = "FILE", requires = "key_file")]
+    pub candump: Option<std::path::PathBuf>,
+    /// The robot's state-bus key for `--candump` (the key file `provision` takes).
+    #[arg(long, value_name = "FILE", requires = "candump")]
+    pub key_file: Option<std::path::PathBuf>,
 }
 
 /// Runs `model-export sil` on the wrist.
@@ -107,19 +116,47 @@ pub fn run(a: &SilArgs) -> anyhow::Result<()> {
                 )
         })
         .collect();
-    // The runs are independent: one thread each.
+    let key = match &a.key_file {
+        Some(p) => {
+            let text = std::fs::read_to_string(p)
+                .map_err(|e| anyhow::anyhow!("reading {}: {e}", p.display()))?;
+            Some(super::provision::parse_key(p, &text)?)
+        }
+        None => None,
+    };
+    let last = modes.last().copied();
+    let mut candump = None;
+    // The runs are independent: one thread each; the last one on a recording bus
+    // with --candump.
     let results: Vec<anyhow::Result<[WristJointReport; J]>> = std::thread::scope(|sc| {
         let hs: Vec<_> = modes
             .iter()
             .map(|&m| {
                 let (setup, model, lstm) = (&setup, &model, lstm.as_ref());
-                sc.spawn(move || run_wrist(setup, m, Some(model), lstm))
+                let record = key.filter(|_| Some(m) == last);
+                let seed = a.seed;
+                sc.spawn(move || {
+                    let mut bus = match record {
+                        Some(k) => sil::StateBus::recording(sil::candump::CandumpRecorder::new(
+                            &k,
+                            (seed as u16) ^ 0x5E55,
+                        )),
+                        None => sil::StateBus::default(),
+                    };
+                    let r = run_wrist_on(setup, m, Some(model), lstm, &mut bus);
+                    r.map(|r| (r, bus.recorder().map(|c| c.text().to_string())))
+                })
             })
             .collect();
         hs.into_iter()
             .map(|h| {
-                h.join()
-                    .unwrap_or_else(|_| Err(anyhow::anyhow!("SIL thread panicked")))
+                let (r, text) = h
+                    .join()
+                    .unwrap_or_else(|_| Err(anyhow::anyhow!("SIL thread panicked")))?;
+                if text.is_some() {
+                    candump = text;
+                }
+                Ok(r)
             })
             .collect()
     });
@@ -169,9 +206,19 @@ pub fn run(a: &SilArgs) -> anyhow::Result<()> {
         None => None,
     };
     // The Markdown and the JSON table: both or neither.
+    if let (Some(p), Some(m)) = (&a.candump, last) {
+        println!(
+            "{}: the {} run's CAN-FD frames (candump -l)",
+            p.display(),
+            m.name()
+        );
+    }
     let files: Vec<(&std::path::Path, &[u8])> = [
         a.report_md.as_deref().map(|p| (p, md.as_bytes())),
         a.report.as_deref().zip(json.as_deref().map(str::as_bytes)),
+        a.candump
+            .as_deref()
+            .zip(candump.as_deref().map(str::as_bytes)),
     ]
     .into_iter()
     .flatten()
