@@ -76,6 +76,7 @@ fn the_deployed_drive_compensator_does_no_harm_on_the_ur10e_logs() {
     let train_list = train_data.join(",");
     let val = dataset(&run("20_02_05-20sec_12harm"), "val", "0");
     let network = s(&out("drive_j6.safetensors"));
+    let loss = s(&out("loss.svg"));
     cli(&[
         "train",
         "--data",
@@ -103,6 +104,8 @@ fn the_deployed_drive_compensator_does_no_harm_on_the_ur10e_logs() {
         "10",
         "--out",
         &network,
+        "--loss-plot",
+        &loss,
     ])
     .unwrap();
     let m = JointProfile::DRIVE_MONITOR;
