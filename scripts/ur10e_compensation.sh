@@ -12,8 +12,23 @@
 #   least-squares baseline fitted on the same training datasets (`--baseline-data`), each
 #   prediction also followed by the drive's online friction adaptation, scored against the
 #   measured torque as logged and low-passed at SCORE_CUTOFF_HZ;
-# - OUT_DIR/summary.json (per run and joint, and the training time per network) and a
-#   Markdown table of it.
+# - the regimes (REGIMES, default all): `heldout` (the above), `held` (the drive
+#   compensator on the test runs whole, rest included, and on the static poses: every row
+#   scored on every joint, the rows where the joint moves and where it is held apart),
+#   `payload` (the drive compensator trained on the runs without payload, tested on the
+#   payload runs `*load*`/`*Load*` that pass the range screen, `unload` excepted; the
+#   payload is not entered: the identified model stays the one without payload, as on a
+#   robot whose tool changed after identification, the hardest case for do-no-harm),
+#   `speed_slow_to_fast` and `speed_fast_to_slow` (the runs without payload sorted by
+#   peak joint speed, the largest |qd| of any joint; models identified and the drive
+#   compensator trained on the slower half, validated on the middle run of that half by
+#   speed, tested on every run of the faster half, and the other way round; in the
+#   folders `speed_*/`); the regimes beyond `heldout` run the drive compensator only,
+#   scored as logged;
+# - OUT_DIR/summary.json (per run and joint, its `regime`, and the training time per
+#   network), a Markdown table of it, and `proof.md`: the deployed drive compensator
+#   (envelope, monitor; adapted and not) against the model alone and the linear baseline
+#   on every regime, run and joint, moving and held rows apart.
 # Runs are named by file name without `.csv`. Training runs: every identification run
 # whose name contains no `load`/`Load` (this drops `unload` too) and whose values are in
 # range (the screen below), except the test and validation runs. Test runs: TEST_RUNS (default `20_02_19_15harm50sec
@@ -27,7 +42,8 @@
 # ADAPT_TIME_CONSTANT_S (2) and ADAPT_MAX_NM (10): the drive's online friction adaptation,
 # SCORE_CUTOFF_HZ (5): the low-pass of the second scoring, MONITOR_WINDOW_S (2; 0 turns
 # it off): the window of the drive's do-no-harm monitor run after every network (and after
-# the adaptation) against the model alone (`monitored` figures), CARGO_TARGET_DIR.
+# the adaptation) against the model alone (`monitored` and `deployed` figures),
+# REGIMES (`heldout held payload speed`), CARGO_TARGET_DIR.
 set -euo pipefail
 root="$(cd "$(dirname "$0")/.." && pwd)"
 usage="usage: ur10e_compensation.sh DATASET_DIR OUT_DIR"
@@ -41,6 +57,8 @@ adapt_time_constant_s="${ADAPT_TIME_CONSTANT_S:-2}"
 adapt_max_nm="${ADAPT_MAX_NM:-10}"
 score_cutoff_hz="${SCORE_CUTOFF_HZ:-5}"
 monitor_window_s="${MONITOR_WINDOW_S:-2}"
+read -r -a regimes <<< "${REGIMES:-heldout held payload speed}"
+want_regime() { case " ${regimes[*]} " in *" $1 "*) return 0 ;; esac; return 1; }
 monitor=()
 [ "$monitor_window_s" = 0 ] || monitor=(--monitor-window-s "$monitor_window_s")
 epochs="${EPOCHS:-60}"
@@ -65,16 +83,24 @@ mapfile -t poses < <(if [ -d "$V" ]; then cd "$V" && ls -- *.csv 2> /dev/null | 
 find_run() { local r; for r in "$1" "ur-$1"; do [ -f "$I/$r.csv" ] && { echo "$r"; return 0; }; done; return 1; }
 # Runs with values no UR10e logs (|q| > 7 rad, |qd| > 4 rad/s, |current| > 100 A, not a
 # number: the UR10e folder has corrupt files) are left out, with a note.
-mapfile -t corrupt < <(python3 - "$I" "${runs[@]}" << 'EOF'
+# Every run that passes is written to peak_speeds.txt with its peak joint speed [rad/s].
+peaks_file="$(mktemp)"
+trap 'rm -f "$peaks_file"' EXIT
+mapfile -t corrupt < <(python3 - "$I" "$peaks_file" "${runs[@]}" << 'EOF'
 import csv, math, sys
-for run in sys.argv[2:]:
-    with open(f"{sys.argv[1]}/{run}.csv") as f:
-        for r in csv.reader(f):
-            v = [float(x) for x in r[1:19]]
-            if not (all(math.isfinite(x) for x in v) and max(map(abs, v[:6])) <= 7
-                    and max(map(abs, v[6:12])) <= 4 and max(map(abs, v[12:])) <= 100):
-                print(run)
-                break
+with open(sys.argv[2], "w") as peaks:
+    for run in sys.argv[3:]:
+        peak = 0.0
+        with open(f"{sys.argv[1]}/{run}.csv") as f:
+            for r in csv.reader(f):
+                v = [float(x) for x in r[1:19]]
+                if not (all(math.isfinite(x) for x in v) and max(map(abs, v[:6])) <= 7
+                        and max(map(abs, v[6:12])) <= 4 and max(map(abs, v[12:])) <= 100):
+                    print(run)
+                    break
+                peak = max(peak, max(map(abs, v[6:12])))
+            else:
+                peaks.write(f"{run} {peak:.6f}\n")
 EOF
 )
 [ "${#corrupt[@]}" -eq 0 ] || echo "left out (values out of range): ${corrupt[*]}"
@@ -99,7 +125,9 @@ done
 echo "training runs (${#train[@]}): ${train[*]}"
 echo "validation run: $val; test runs: ${tests[*]}; static poses: ${poses[*]:-none}"
 
+study_start=$(date +%s)
 mkdir -p "$out/data" "$out/data-paper" "$out/eval"
+cp "$peaks_file" "$out/peak_speeds.txt"
 cd "$out"
 logs=()
 for r in "${train[@]}"; do logs+=(--log "$I/$r.csv"); done
@@ -121,6 +149,32 @@ for pair in "paper-model.json data-paper" "model.json data"; do
 done
 evaluated=("${tests[@]}" "${poses[@]}")
 train_list() { local r s=""; for r in "${train[@]}"; do s+="$1/$r.csv,"; done; echo "${s%,}"; }
+
+# train_drive TRAIN_LIST VALIDATION_CSV: the drive compensator, one network per joint,
+# in the current folder (lstm_drive_jN.safetensors); its time in train_seconds.txt.
+drive_size=(--embed 16 --hidden 16 --patience 15 --gain-folds 4
+  --adapt-time-constant-s "$adapt_time_constant_s" --adapt-max-nm "$adapt_max_nm")
+train_drive() {
+  local g start
+  for g in ${joints//,/ }; do
+    start=$(date +%s.%N)
+    "$ME" train --data "$1" --validation-data "$2" --preset drive --joints "$g" "${drive_size[@]}" \
+      --epochs "$epochs" --lr 0.003 --seed 1 --quiet --out "lstm_drive_j$g.safetensors" \
+      --loss-plot "loss_drive_j$g.svg" --report "train_drive_j$g.json" > "train_drive_j$g.txt"
+    echo "drive $(date +%s.%N) $start" >> train_seconds.txt
+  done
+}
+# eval_drive TRAIN_LIST NAME: the drive compensator on data/NAME.csv, as logged, adapted
+# and monitored (eval/drive_jN_NAME.json).
+eval_drive() {
+  local g
+  for g in ${joints//,/ }; do
+    "$ME" evaluate --network "lstm_drive_j$g.safetensors" --data "data/$2.csv" --preset drive \
+      --joints "$g" --baseline-data "$1" --adapt-time-constant-s "$adapt_time_constant_s" \
+      --adapt-max-nm "$adapt_max_nm" "${monitor[@]}" --report "eval/drive_j${g}_$2.json" \
+      > "eval/drive_j${g}_$2.txt"
+  done
+}
 
 nets_run=()
 : > train_seconds.txt
@@ -171,12 +225,84 @@ for spec in "${all_nets[@]}"; do
   done
 done
 
+# The regimes beyond `heldout`: the drive compensator (trained above when NETS has it).
+regime_runs=()
+if [ -f "lstm_drive_j${joints%%,*}.safetensors" ]; then
+  if want_regime held; then
+    # The test runs whole (rest included): every row, moving or held.
+    for r in "${tests[@]}"; do
+      for pair in "paper-model.json data-paper" "model.json data"; do
+        read -r m dir <<< "$pair"
+        dataset "$m" "$dir" "$I/$r.csv" "${r}_whole" 0
+      done
+      eval_drive "$(train_list data)" "${r}_whole"
+      regime_runs+=("held ${r}_whole .")
+    done
+    for r in "${poses[@]}"; do regime_runs+=("held $r ."); done
+  fi
+  if want_regime payload; then
+    mapfile -t payload_runs < <(printf '%s\n' "${runs[@]}" | grep '[lL]oad' | grep -v unload \
+      | grep -vxF -f <(printf '%s\n' "${corrupt[@]}" "/") || true)
+    echo "payload runs: ${payload_runs[*]:-none}"
+    for r in "${payload_runs[@]}"; do
+      for pair in "paper-model.json data-paper" "model.json data"; do
+        read -r m dir <<< "$pair"
+        dataset "$m" "$dir" "$I/$r.csv" "$r" 0.01
+      done
+      eval_drive "$(train_list data)" "$r"
+      regime_runs+=("payload $r .")
+    done
+  fi
+  if want_regime speed; then
+    # The runs without payload by peak joint speed, slowest first.
+    mapfile -t by_speed < <(grep -wF -f <(printf '%s\n' "${candidates[@]}") peak_speeds.txt \
+      | LC_ALL=C sort -k2,2g -k1,1 | cut -d' ' -f1)
+    half=$(( ${#by_speed[@]} / 2 ))
+    slow=("${by_speed[@]:0:half}")
+    fast=("${by_speed[@]:half}")
+    for regime in speed_slow_to_fast speed_fast_to_slow; do
+      if [ "$regime" = speed_slow_to_fast ]; then
+        train=("${slow[@]}"); rtests=("${fast[@]}")
+      else
+        train=("${fast[@]}"); rtests=("${slow[@]}")
+      fi
+      val="${train[${#train[@]} / 2]}"
+      rtrain=()
+      for r in "${train[@]}"; do [ "$r" = "$val" ] || rtrain+=("$r"); done
+      train=("${rtrain[@]}")
+      echo "== $regime: training runs ${train[*]}; validation run $val; test runs ${rtests[*]}"
+      mkdir -p "$regime/data" "$regime/data-paper" "$regime/eval"
+      (
+        cd "$regime"
+        : > train_seconds.txt
+        logs=()
+        for r in "${train[@]}"; do logs+=(--log "$I/$r.csv"); done
+        "$ME" identify --robot "$D/ur10e.urdf" --layout ur10e "${logs[@]}" --validation-log "$I/$val.csv" \
+          --coulomb-smoothing-rad-s 0.02 -o paper-model.json > identify-paper.txt
+        "$ME" identify --robot "$D/ur10e.urdf" --layout ur10e "${logs[@]}" --validation-log "$I/$val.csv" \
+          "${first_stage_args[@]}" -o model.json > identify.txt
+        for pair in "paper-model.json data-paper" "model.json data"; do
+          read -r m dir <<< "$pair"
+          for r in "${train[@]}" "$val"; do dataset "$m" "$dir" "$I/$r.csv" "$r" 0; done
+          for r in "${rtests[@]}"; do dataset "$m" "$dir" "$I/$r.csv" "$r" 0.01; done
+        done
+        train_drive "$(train_list data)" "data/$val.csv"
+        for r in "${rtests[@]}"; do eval_drive "$(train_list data)" "$r"; done
+      )
+      for r in "${rtests[@]}"; do regime_runs+=("$regime $r $regime"); done
+    done
+  fi
+fi
+study_seconds=$(( $(date +%s) - study_start ))
+
+REGIME_RUNS="$(printf '%s\n' "${regime_runs[@]}")" STUDY_SECONDS="$study_seconds" \
 NETS_RUN="${nets_run[*]}" EVALUATED="${evaluated[*]}" JOINT_LIST="$joints" \
   ADAPT_T="$adapt_time_constant_s" ADAPT_MAX="$adapt_max_nm" SCORE_HZ="$score_cutoff_hz" MONITOR_WINDOW="$monitor_window_s" python3 - << 'EOF'
 import csv, json, math, os, re
 
 nets = os.environ["NETS_RUN"].split()
 runs = os.environ["EVALUATED"].split()
+poses = [l.split()[1] for l in os.environ.get("REGIME_RUNS", "").splitlines() if l.startswith("held ")]
 joints = [int(j) for j in os.environ["JOINT_LIST"].split(",")]
 
 
@@ -215,6 +341,19 @@ def adapted(name, run, j, key, suffix=""):
 
 def monitored(name, run, j, key, suffix=""):
     return (outputs(name, run, suffix).get(j, {}).get("monitored") or {}).get(key)
+
+
+def drive_output(folder, run, j):
+    """The drive compensator's evaluate figures for joint `j` on `run` in `folder`."""
+    path = f"{folder}/eval/drive_j{j}_{run}.json"
+    if not os.path.exists(path):
+        return {}
+    with open(path) as f:
+        return json.load(f)["data"][0]["outputs"][0]
+
+
+def drive_deployed(folder, run, j):
+    return drive_output(folder, run, j).get("deployed")
 
 
 def first(names, run, j, key, suffix=""):
@@ -286,7 +425,80 @@ for run in runs:
             "monitored": scored(run, j, "")["monitored"],
             "low_passed": scored(run, j, "_lp"),
         }
-    summary["runs"][run] = {"samples": samples, "joints": per_joint}
+    regime = "held" if run in poses else "heldout"
+    for j in joints:
+        per_joint[str(j)]["regime"] = regime
+        per_joint[str(j)]["deployed"] = drive_deployed(".", run, j)
+    summary["runs"][run] = {"regime": regime, "samples": samples, "joints": per_joint}
+
+# The regimes beyond `heldout`: the drive compensator alone, as logged.
+for line in os.environ.get("REGIME_RUNS", "").splitlines():
+    if not line.strip():
+        continue
+    regime, run, folder = line.split()
+    key = run if folder == "." else f"{folder}/{run}"
+    if key in summary["runs"]:
+        continue
+    paper, samples = dataset_figures(f"{folder}/data-paper/{run}.csv")
+    first_stage, _ = dataset_figures(f"{folder}/data/{run}.csv")
+    per_joint = {}
+    for j in joints:
+        o = drive_output(folder, run, j)
+        per_joint[str(j)] = {
+            "regime": regime,
+            "model_rms_nm": paper[j][0],
+            "first_stage_rms_nm": first_stage[j][0],
+            "baseline_rms_nm": o.get("baseline_rms_nm"),
+            "compensated_rms_nm": {"drive": o.get("rms_after")},
+            "moving_samples": paper[j][1],
+            "adapted": o.get("adapted"),
+            "monitored": o.get("monitored"),
+            "deployed": o.get("deployed"),
+        }
+    summary["runs"][key] = {"regime": regime, "samples": samples, "joints": per_joint}
+
+# The do-no-harm bars on the deployed drive compensator (envelope and monitor; adapted
+# and not): against the model alone (the first stage, what every fade falls back to) and
+# the linear baseline (adapted against adapted), on all rows, moving rows and held rows.
+BAR = 1.02
+proof_rows = []
+for key, r in summary["runs"].items():
+    for j, x in r["joints"].items():
+        d = x.get("deployed")
+        if not d:
+            continue
+        for subset in ["all", "moving", "held"]:
+            f = d.get(subset)
+            if not f:
+                continue
+            ratio = lambda a, b: None if a is None or not b else a / b
+            row = {
+                "regime": r["regime"], "run": key, "joint": int(j), "rows": subset,
+                "samples": f["rows"],
+                "model_rms_nm": f["model_rms_nm"],
+                "deployed_over_model": ratio(f["deployed_rms_nm"], f["model_rms_nm"]),
+                "adapted_deployed_over_model": ratio(f["adapted_deployed_rms_nm"], f["model_rms_nm"]),
+                "deployed_over_baseline": ratio(f["deployed_rms_nm"], f["baseline_rms_nm"]),
+                "adapted_deployed_over_adapted_baseline": ratio(f["adapted_deployed_rms_nm"], f["adapted_baseline_rms_nm"]),
+            }
+            row["pass"] = all(v is None or v <= BAR for k, v in row.items() if "_over_" in k)
+            proof_rows.append(row)
+# No regression where it helps: the adapted deployed compensator at or below 0.8 x the
+# paper model on the moving joints of the held-out test runs.
+paper_rows = []
+for key, r in summary["runs"].items():
+    if r["regime"] != "heldout":
+        continue
+    for j, x in r["joints"].items():
+        d = x.get("deployed")
+        if d and d.get("moving") and x["moving_samples"] > 0:
+            v = d["all"]["adapted_deployed_rms_nm"]
+            if v is not None:
+                paper_rows.append({"run": key, "joint": int(j), "adapted_deployed_over_paper_model": v / x["model_rms_nm"]})
+for p in paper_rows:
+    p["pass"] = p["adapted_deployed_over_paper_model"] <= 0.8
+summary["proof"] = {"bar": BAR, "rows": proof_rows, "paper_model": paper_rows}
+summary["study_seconds"] = int(os.environ.get("STUDY_SECONDS", "0"))
 
 with open("summary.json", "w") as f:
     json.dump(summary, f, indent=2)
@@ -303,6 +515,8 @@ def table(title, pick):
     print("|" + "---|" * 2 + "---:|" * (len(head) - 2))
     for run, r in summary["runs"].items():
         for j, x in r["joints"].items():
+            if "low_passed" not in x:
+                continue  # a regime beyond held-out: in proof.md
             vals = pick(x)
             print(f"| {run} | {j} | " + " | ".join(cell(v) for v in vals) + " |")
 
@@ -327,6 +541,37 @@ table(
     lambda x: [x["model_rms_nm"], x["first_stage_rms_nm"], x["baseline_rms_nm"]]
     + [x["monitored"]["compensated_rms_nm"][n] for n in nets],
 )
+def proof_table():
+    lines = [
+        f"Deployed drive compensator (envelope and monitor) over the model alone and over the linear baseline (bar {BAR}; adapted over adapted baseline):",
+        "",
+        "| regime | run | joint | rows | samples | model [N m] | deployed / model | adapted / model | deployed / baseline | adapted / adapted baseline | pass |",
+        "|---|---|---:|---|---:|---:|---:|---:|---:|---:|---|",
+    ]
+    for p in proof_rows:
+        lines.append(
+            f"| {p['regime']} | {p['run']} | {p['joint']} | {p['rows']} | {p['samples']} | {p['model_rms_nm']:.3f} | "
+            + " | ".join(cell(p[k]) for k in ["deployed_over_model", "adapted_deployed_over_model", "deployed_over_baseline", "adapted_deployed_over_adapted_baseline"])
+            + f" | {'yes' if p['pass'] else 'NO'} |"
+        )
+    fails = [p for p in proof_rows if not p["pass"]]
+    lines += ["", f"{len(proof_rows) - len(fails)} of {len(proof_rows)} rows within the bar."]
+    for regime in sorted({p["regime"] for p in proof_rows}):
+        rs = [p for p in proof_rows if p["regime"] == regime]
+        worst = {k: max((p[k] for p in rs if p[k] is not None), default=None) for k in ["deployed_over_model", "adapted_deployed_over_model", "deployed_over_baseline", "adapted_deployed_over_adapted_baseline"]}
+        lines.append(f"- {regime}: {sum(p['pass'] for p in rs)} of {len(rs)} within; worst " + ", ".join(f"{k} {cell(v)}" for k, v in worst.items()))
+    lines += ["", "Adapted deployed compensator over the paper model, moving joints of the held-out test runs (bar 0.8):", ""]
+    for p in paper_rows:
+        lines.append(f"- {p['run']} joint {p['joint']}: {p['adapted_deployed_over_paper_model']:.3f} {'' if p['pass'] else 'ABOVE 0.8'}")
+    return "\n".join(lines) + "\n"
+
+
+with open("proof.md", "w") as f:
+    f.write(proof_table())
+print()
+print(proof_table())
+print(f"study time after the build: {summary['study_seconds']} s")
+
 table(
     "The same, adapted then monitored (`monitored.adapted_compensated_rms_nm`; model, first stage, baseline adapted):",
     lambda x: [x["adapted"]["model_rms_nm"], x["adapted"]["first_stage_rms_nm"], x["adapted"]["baseline_rms_nm"]]

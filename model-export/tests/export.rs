@@ -37,6 +37,7 @@ fn args(out: PathBuf, precision: Precision) -> ExportArgs {
         allow_worse: false,
         envelope_data: Vec::new(),
         no_envelope: false,
+        no_monitor: false,
     }
 }
 

@@ -28,6 +28,7 @@ fn export_args(robot: Option<PathBuf>, out: PathBuf) -> ExportArgs {
         allow_worse: false,
         envelope_data: Vec::new(),
         no_envelope: false,
+        no_monitor: false,
     }
 }
 

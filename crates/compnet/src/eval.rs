@@ -116,6 +116,156 @@ pub struct ReportRow {
     /// asked for, or the output is not a joint's measured torque).
     #[serde(default)]
     pub monitored: Option<MonitoredRms>,
+    /// The deployed compensator (envelope, adaptation when asked for, monitor) beside the
+    /// model alone and the linear baseline, on all rows and apart on the rows where the
+    /// joint moves and where it is held (`None`: no monitor asked for, or the output is
+    /// not a joint's measured torque).
+    #[serde(default)]
+    pub deployed: Option<DeployedRms>,
+}
+
+/// A joint is held on a row where its |velocity| is below this [rad/s] (the study's
+/// `moving_samples` threshold and `torque --trim-rest-rad-s` of its test runs).
+pub const HELD_BELOW_RAD_S: f32 = 0.01;
+
+/// RMS [N·m] of the deployed compensator and of what it is read against, on one set of
+/// rows.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct RowsRms {
+    /// Rows scored.
+    pub rows: usize,
+    /// The identified model alone (what every fade falls back to).
+    pub model_rms_nm: f64,
+    /// The linear baseline (`None`: no baseline given).
+    pub baseline_rms_nm: Option<f64>,
+    /// The linear baseline followed by the online adaptation (`None`: no baseline or no
+    /// adaptation).
+    pub adapted_baseline_rms_nm: Option<f64>,
+    /// The compensator as the drive runs it without the adaptation: network (faded
+    /// outside its envelope), then the monitor.
+    pub deployed_rms_nm: f64,
+    /// The same with the adaptation between the network and the monitor (`None`: no
+    /// adaptation asked for).
+    pub adapted_deployed_rms_nm: Option<f64>,
+}
+
+impl RowsRms {
+    /// Every number (checked finite before a report is written).
+    pub fn figures(&self) -> impl Iterator<Item = f64> + '_ {
+        [self.model_rms_nm, self.deployed_rms_nm]
+            .into_iter()
+            .chain(self.baseline_rms_nm)
+            .chain(self.adapted_baseline_rms_nm)
+            .chain(self.adapted_deployed_rms_nm)
+    }
+}
+
+/// [`RowsRms`] on all rows, on the rows where the joint moves and where it is held
+/// (`None`: no such row).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct DeployedRms {
+    /// Every scored row.
+    pub all: RowsRms,
+    /// Rows with |qd| at or above [`HELD_BELOW_RAD_S`].
+    pub moving: Option<RowsRms>,
+    /// Rows with |qd| below it.
+    pub held: Option<RowsRms>,
+}
+
+impl DeployedRms {
+    /// Every number (checked finite before a report is written).
+    pub fn figures(&self) -> impl Iterator<Item = f64> + '_ {
+        self.all
+            .figures()
+            .chain(self.moving.iter().flat_map(|r| r.figures()))
+            .chain(self.held.iter().flat_map(|r| r.figures()))
+    }
+}
+
+/// Per output of `spec`: the deployed compensator's figures ([`DeployedRms`]): the
+/// network's predictions `pred` (already faded outside the envelope) followed by the
+/// adaptation (when given) and the monitor `config` against the model alone, as the
+/// drive chains them, learning from `table`'s measured torque, scored against
+/// `scored`'s, beside the model alone and the linear baseline (static and adapted);
+/// `None` for outputs that are not a joint's measured torque.
+pub fn deployed_rms(
+    pred: &[Vec<f32>],
+    spec: &FeatureSpec,
+    (table, scored): (&Table, &Table),
+    seq: &Sequence,
+    baseline: Option<&LinearBaseline>,
+    adaptation_config: Option<AdaptationConfig>,
+    config: MonitorConfig,
+) -> Result<Vec<Option<DeployedRms>>> {
+    if pred.len() != seq.len() {
+        bail!("{} predictions for {} steps", pred.len(), seq.len());
+    }
+    let baseline_pred = baseline.map(|b| b.predict(table)).transpose()?;
+    let rows = table.len();
+    let mut out = Vec::new();
+    for (k, t) in spec.targets.iter().enumerate() {
+        let Some(j) = target_joint(spec, k) else {
+            out.push(None);
+            continue;
+        };
+        check_span(table, seq.len(), t.shift)?;
+        let per_row = |value: &dyn Fn(usize) -> f64| absolute_per_row(rows, seq, k, t.shift, value);
+        let measured = scored.column(&format!("tau_meas_j{j}"))?;
+        let qd = table.column(&format!("qd_j{j}"))?;
+        let base = per_row(&|r| seq.model_only[r][k] as f64);
+        let full = per_row(&|r| pred[r][k] as f64);
+        let deployed = crate::monitor::monitor(table, j, &base, &full, config)?.torque_nm;
+        let adapted_deployed = match adaptation_config {
+            Some(cfg) => Some(
+                crate::monitor::monitor(
+                    table,
+                    j,
+                    &base,
+                    &adaptation::adapt(table, j, &full, cfg)?,
+                    config,
+                )?
+                .torque_nm,
+            ),
+            None => None,
+        };
+        let base_line = match (&baseline_pred, baseline) {
+            (Some(p), Some(b)) => b.joints.iter().position(|&x| x == j).map(|i| p[i].clone()),
+            _ => None,
+        };
+        let adapted_base_line = match (&base_line, adaptation_config) {
+            (Some(p), Some(cfg)) => Some(adaptation::adapt(table, j, p, cfg)?),
+            _ => None,
+        };
+        let span = t.shift..t.shift + seq.len();
+        let figures = |keep: &dyn Fn(usize) -> bool| -> Option<RowsRms> {
+            let picked: Vec<usize> = span.clone().filter(|&r| keep(r)).collect();
+            let rms = |p: &[f64]| {
+                let ss: f64 = picked
+                    .iter()
+                    .map(|&r| (measured[r] as f64 - p[r]).powi(2))
+                    .sum();
+                (ss / picked.len() as f64).sqrt()
+            };
+            (!picked.is_empty()).then(|| RowsRms {
+                rows: picked.len(),
+                model_rms_nm: rms(&base),
+                baseline_rms_nm: base_line.as_deref().map(rms),
+                adapted_baseline_rms_nm: adapted_base_line.as_deref().map(rms),
+                deployed_rms_nm: rms(&deployed),
+                adapted_deployed_rms_nm: adapted_deployed.as_deref().map(rms),
+            })
+        };
+        let Some(all) = figures(&|_| true) else {
+            out.push(None);
+            continue;
+        };
+        out.push(Some(DeployedRms {
+            all,
+            moving: figures(&|r| qd[r].abs() >= HELD_BELOW_RAD_S),
+            held: figures(&|r| qd[r].abs() < HELD_BELOW_RAD_S),
+        }));
+    }
+    Ok(out)
 }
 
 /// RMS [N·m] of the network's prediction after the do-no-harm monitor

@@ -136,6 +136,22 @@ impl JointProfile {
         max_rate_error_ppm: 20_000,
     };
 
+    /// The do-no-harm monitor of the deployed drive compensator: `export` writes it into
+    /// the profile of every joint of a `drive` network whose description leaves the
+    /// monitor off. The design rule: the window equals the friction adaptation's time
+    /// constant as the study runs it (2 s: the horizon over which the drive already
+    /// trusts what it measured; a shorter window would judge the adaptation's own
+    /// transients, a longer one leaves harm in place longer than the adaptation takes
+    /// to correct a drift), a full fade in a quarter of the window (0.5 s: several
+    /// window-lengths of evidence are never needed to remove a harm, and the gain cannot
+    /// step), hysteresis 0.05 (the gain's estimation noise over a 2 s window at the
+    /// UR10e's 100 Hz, about 200 samples). Not fitted to any run's score.
+    pub const DRIVE_MONITOR: MonitorConfig = MonitorConfig {
+        window_s: 2.0,
+        fade_s: 0.5,
+        hysteresis: 0.05,
+    };
+
     /// Joint-side torque per A of motor q current, N*m/A (motor torque constant x
     /// gear ratio x gear efficiency).
     pub const fn drive_gain_nm_per_a(&self) -> f32 {

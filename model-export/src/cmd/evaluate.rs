@@ -176,6 +176,18 @@ pub fn run(a: EvaluateArgs) -> Result<()> {
             Some(cfg) => eval::monitored_rms(&pred, &spec, (table, scored), &s, adaptation, cfg)?,
             None => vec![None; rows.len()],
         };
+        let deployed = match monitor {
+            Some(cfg) => eval::deployed_rms(
+                &pred,
+                &spec,
+                (table, scored),
+                &s,
+                baseline.as_ref(),
+                adaptation,
+                cfg,
+            )?,
+            None => vec![None; rows.len()],
+        };
         if let (0, Some(dir)) = (i, &a.figures) {
             for (name, svg) in plot::compensation_figures(&model, &s)? {
                 figures.push((dir.join(name), svg));
@@ -187,8 +199,12 @@ pub fn run(a: EvaluateArgs) -> Result<()> {
             .zip(adapted)
             .zip(&outside)
             .zip(monitored)
+            .zip(deployed)
             .map(
-                |((((eval, baseline_rms_nm), adapted), &outside_envelope_share), monitored)| {
+                |(
+                    ((((eval, baseline_rms_nm), adapted), &outside_envelope_share), monitored),
+                    deployed,
+                )| {
                     eval::ReportRow {
                         eval,
                         samples: s.len(),
@@ -196,6 +212,7 @@ pub fn run(a: EvaluateArgs) -> Result<()> {
                         adapted,
                         outside_envelope_share,
                         monitored,
+                        deployed,
                     }
                 },
             )
@@ -208,6 +225,7 @@ pub fn run(a: EvaluateArgs) -> Result<()> {
                     .chain(r.baseline_rms_nm)
                     .chain(r.adapted.iter().flat_map(|a| a.figures()))
                     .chain(r.monitored.iter().flat_map(|m| m.figures()))
+                    .chain(r.deployed.iter().flat_map(|d| d.figures()))
             }),
         )?;
         let plain: Vec<eval::TargetEval> = rows.iter().map(|r| r.eval.clone()).collect();

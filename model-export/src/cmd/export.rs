@@ -100,6 +100,11 @@ pub struct ExportArgs {
     /// stages are then never faded (test fixtures; a seeded network never has one).
     #[arg(long, conflicts_with = "envelope_data")]
     pub no_envelope: bool,
+    /// A `drive` network's profiles keep the do-no-harm monitor off where the robot
+    /// description leaves it off (by default the exporter turns it on there with
+    /// `JointProfile::DRIVE_MONITOR`).
+    #[arg(long)]
+    pub no_monitor: bool,
 }
 
 /// The training envelope of the network to export: recorded from `--envelope-data`
@@ -285,6 +290,23 @@ fn joint_profiles(
         .collect()
 }
 
+/// The deployed drive compensator runs its do-no-harm monitor: for a `drive` network,
+/// every profile whose monitor is off (window 0, the robot description's default) gets
+/// [`firmware::control::JointProfile::DRIVE_MONITOR`], unless `no_monitor`; a window the
+/// description gives is kept. Other presets' profiles are unchanged.
+fn with_drive_monitor(
+    mut profiles: Vec<firmware::control::JointProfile>,
+    preset: &str,
+    no_monitor: bool,
+) -> Vec<firmware::control::JointProfile> {
+    if preset == "drive" && !no_monitor {
+        for p in profiles.iter_mut().filter(|p| p.monitor.window_s == 0.0) {
+            p.monitor = firmware::control::JointProfile::DRIVE_MONITOR;
+        }
+    }
+    profiles
+}
+
 /// Builds the model to export.
 pub fn model(a: &ExportArgs) -> Result<LstmModel> {
     let mut m = seeded_or_read(a)?;
@@ -413,6 +435,7 @@ pub fn render_export(m: &LstmModel, a: &ExportArgs) -> Result<(Exported, Placeme
             vec![firmware::control::JointProfile::BOARD; joints.len()],
         ),
     };
+    let profiles = with_drive_monitor(profiles, &m.preset, a.no_monitor);
     let sram = a.budgets.as_deref().map(sram_budget).transpose()?;
     let bytes = ModelBytes {
         network: net.flash_bytes(),
