@@ -870,7 +870,7 @@ impl Report {
         md.push('\n');
         let _ = writeln!(
             md,
-            "### Quantised (the firmware's kernels, streamed on the test run)\n"
+            "### Quantised networks (the firmware's kernels, streamed on the test run)\n"
         );
         let _ = writeln!(
             md,
