@@ -206,7 +206,7 @@ fn main() -> ! {
                 test_kit::proof::FAST_SPEED,
                 test_kit::proof::FAST_PHASE_RAD,
                 test_kit::proof::FAST_TICKS,
-                |k, t| emit(k, t),
+                emit,
             )
         };
         run(&mut |_, _| n += 1);
