@@ -105,6 +105,23 @@ pub fn build_with(bin: FirmwareBin, opt_level: Option<&str>) -> Result<PathBuf> 
     }
 }
 
+/// Builds a firmware binary in release with `model` (a file written by `model-export
+/// export`) compiled in as the firmware's model (`FIRMWARE_MODEL`), in its own target
+/// directory `target/thumb-model` so the default build stays cached.
+pub fn build_with_model(bin: FirmwareBin, model: &Path) -> Result<PathBuf> {
+    let model = model
+        .canonicalize()
+        .with_context(|| format!("resolving {}", model.display()))?;
+    let model = model
+        .to_str()
+        .with_context(|| format!("{}: not a UTF-8 path", model.display()))?;
+    cargo_build(
+        bin,
+        workspace_root().join("target").join("thumb-model"),
+        &[("FIRMWARE_MODEL", Some(model))],
+    )
+}
+
 /// Builds the board's bench binary in release with the workloads named in `workloads`
 /// (`BENCH_WORKLOADS`, comma-separated), or its default group for `None`.
 pub fn build_board_bench(workloads: Option<&str>) -> Result<PathBuf> {

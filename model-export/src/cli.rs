@@ -236,8 +236,10 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
                 crate::cmd::sil::run(&wrist)
             } else if wrist.candump.is_some() {
                 anyhow::bail!("--candump is for the wrist SIL: give --identified too")
-            } else if wrist.adapt_time_constant_s.is_some() {
-                anyhow::bail!("--adapt-time-constant-s is for the wrist SIL: give --identified too")
+            } else if wrist.adapt_time_constant_s.is_some() || wrist.monitor_window_s.is_some() {
+                anyhow::bail!(
+                    "--adapt-time-constant-s and --monitor-window-s are for the wrist SIL: give --identified too"
+                )
             } else {
                 run_sil(wrist.seconds.unwrap_or(5.0), wrist.seed)
             }

@@ -74,6 +74,56 @@ fn fast_demo_writes_the_report_and_its_figures_match_the_stage_commands() {
             assert!((p("ours") - p(form)).abs() <= 1e-6 * p("ours"), "{row}");
         }
     }
+    // The drive-side compensator: evaluated open loop with baseline, adaptation and
+    // monitor, and run in the closed loop with envelope, adaptation and monitor on.
+    assert!(md.contains("The drive-side compensator"));
+    let drive = &report["drive_compensator"];
+    assert_eq!(drive["settings"]["monitor_window_s"], 2.0);
+    let rows = drive["open_loop"].as_array().unwrap();
+    assert_eq!(rows.len(), 3);
+    for row in rows {
+        for k in [
+            "model_nm",
+            "baseline_nm",
+            "compensator_nm",
+            "adapted_compensator_nm",
+            "monitored_nm",
+        ] {
+            let v = row[k].as_f64().unwrap();
+            assert!(v.is_finite() && v > 0.0, "{k}: {row}");
+        }
+        let share = row["outside_envelope_share"].as_f64().unwrap();
+        assert!((0.0..=1.0).contains(&share), "{row}");
+    }
+    let closed = &report["closed_loop"];
+    assert!(
+        closed["title"]
+            .as_str()
+            .unwrap()
+            .contains("do-no-harm monitor window 2 s"),
+        "{closed}"
+    );
+    let lstm_rows: Vec<&Value> = closed["results"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|r| r["feedforward"].as_str().unwrap().contains("LSTM"))
+        .collect();
+    assert_eq!(lstm_rows.len(), 2);
+    for r in lstm_rows {
+        for j in r["joints"].as_array().unwrap() {
+            let share = j["outside_envelope_share"].as_f64().unwrap();
+            let (mean, min) = (
+                j["mean_monitor_gain"].as_f64().unwrap(),
+                j["min_monitor_gain"].as_f64().unwrap(),
+            );
+            assert!((0.0..=1.0).contains(&share), "{j}");
+            assert!(
+                (0.0..=1.0).contains(&min) && min <= mean && mean <= 1.0,
+                "{j}"
+            );
+        }
+    }
     assert!(
         report["stages"]
             .as_array()

@@ -334,3 +334,183 @@ fn trained_slow_run_three_times_faster_the_compensator_stays_with_the_model() {
     );
     assert!(!text.contains("JointEnvelope::UNBOUNDED"));
 }
+
+/// A `drive` dataset of joint 1 along the test kit's proof motion at `speed`
+/// (`test_kit::proof`: the true torque and the model torque the QEMU image computes).
+fn proof_dataset(path: &Path, speed: f32, phase_rad: f32, ticks: usize) {
+    use test_kit::proof;
+    let mut csv = String::from("time_s,q_j1,qd_j1,qdd_j1,tau_meas_j1,tau_model_j1");
+    for c in [0, 1, 5, 6, 7, 8, 9] {
+        csv += &format!(",{}_j1", DRIVE_COLUMNS[c]);
+    }
+    csv += "\n";
+    let mut memory = MotionMemory::new();
+    for k in 0..ticks {
+        let (q, qd, qdd) = proof::motion(speed, phase_rad, k);
+        let model = proof::model_torque_nm(q, qd, qdd);
+        let x = features::drive_inputs(q, qd, qdd, model, memory.update(q, qd), 0.0);
+        csv += &format!(
+            "{},{q},{qd},{qdd},{},{model}",
+            k as f64 / f64::from(proof::RATE_HZ),
+            proof::true_torque_nm(q, qd, qdd)
+        );
+        for c in [0, 1, 5, 6, 7, 8, 9] {
+            csv += &format!(",{}", x[c]);
+        }
+        csv += "\n";
+    }
+    std::fs::write(path, csv).unwrap();
+}
+
+/// The same proof on the target: a `drive` compensator trained on the test kit's slow
+/// proof motion is exported, compiled into the QEMU image as its model
+/// (`FIRMWARE_MODEL`), and run there (`test_kit::proof::stream`, the image's `proof`
+/// suite) on the motion three times faster. Its outputs and flags are bit-identical to
+/// the host's, never leave the model torque plus or minus the profile's
+/// `max_lstm_correction_nm`, and their RMS error against the true torque is within 2 %
+/// of the model's.
+#[test]
+fn trained_model_on_qemu_three_times_faster_matches_the_host_and_stays_with_the_model() {
+    use host_tests::compare::{Record, compare};
+    use host_tests::{golden, qemu, target};
+    use test_kit::proof;
+    if !test_support::target_tools_or_skip("the envelope proof on QEMU") {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let runs: Vec<PathBuf> = (0..3)
+        .map(|k| {
+            let p = dir.path().join(format!("slow{k}.csv"));
+            proof_dataset(&p, 1.0, 0.9 * k as f32, 2_000);
+            p
+        })
+        .collect();
+    let net_path = dir.path().join("drive.safetensors");
+    cli(&[
+        "train",
+        "--data",
+        &format!("{},{}", path(&runs[0]), path(&runs[1])),
+        "--validation-data",
+        &path(&runs[2]),
+        "--preset",
+        "drive",
+        "--joints",
+        "1",
+        "--epochs",
+        "3",
+        "--window",
+        "50",
+        "--burn-in",
+        "10",
+        "--embed",
+        "4",
+        "--hidden",
+        "4",
+        "--lr",
+        "0.01",
+        "--seed",
+        "3",
+        "--quiet",
+        "--out",
+        &path(&net_path),
+        "--loss-plot",
+        &path(&dir.path().join("loss.svg")),
+    ])
+    .expect("trains");
+    let model_rs = dir.path().join("proof_model.rs");
+    cli(&[
+        "export",
+        "--network",
+        &path(&net_path),
+        "--joints",
+        "1",
+        "--precision",
+        "f32",
+        "--allow-worse",
+        "--out",
+        &path(&model_rs),
+    ])
+    .expect("exports");
+
+    // The host: the same stream through the run-time view of the same f32 network.
+    let model = io::read_model(&net_path).unwrap();
+    let net = sil::wrist::HostNetwork::F32(fw_export::F32Net::arrange(&model).unwrap());
+    let linear = [std::array::from_fn(|c| model.linear[c])];
+    let profile = JointProfile::BOARD;
+    let mut host_ticks = Vec::new();
+    proof::stream::<1, DRIVE_INPUTS_PER_JOINT, _>(
+        &net,
+        FeaturePreset::Drive,
+        linear,
+        [model.envelope[0]],
+        &profile,
+        proof::FAST_SPEED,
+        proof::FAST_PHASE_RAD,
+        proof::FAST_TICKS,
+        |_, t| host_ticks.push(t),
+    );
+    assert_eq!(host_ticks.len(), proof::FAST_TICKS);
+    let host_records: Vec<Record> = host_ticks
+        .iter()
+        .enumerate()
+        .flat_map(|(k, t)| {
+            [
+                Record::new("py", k, k as u32, t.output_nm.to_bits()),
+                Record::new("pf", k, k as u32, t.faults),
+            ]
+        })
+        .collect();
+
+    // The target: the QEMU image with the exported file as its model.
+    let t0 = std::time::Instant::now();
+    let elf = target::build_with_model(target::FirmwareBin::Qemu, &model_rs)
+        .unwrap_or_else(|e| panic!("{e:#}"));
+    let report = qemu::run(&elf).unwrap_or_else(|e| panic!("{e:#}"));
+    let suites = golden::parse_report(&report).unwrap_or_else(|e| panic!("{e:#}"));
+    let suite = suites
+        .iter()
+        .find(|s| s.name == "proof")
+        .expect("the image's proof suite");
+    let n = compare(&suite.records, &host_records)
+        .unwrap_or_else(|m| panic!("proof: first mismatch between QEMU and the host: {m}"));
+    println!(
+        "QEMU image with the trained model (built and run in {:.1} s): {n} results bit-identical to the host",
+        t0.elapsed().as_secs_f64()
+    );
+
+    // Read on the target's own outputs.
+    let target_out: Vec<f32> = suite
+        .records
+        .iter()
+        .filter(|r| r.function == "py")
+        .map(|r| f32::from_bits(r.output_bits))
+        .collect();
+    assert_eq!(target_out.len(), host_ticks.len());
+    let warmup = usize::from(profile.warmup_ticks);
+    let after = || target_out.iter().zip(&host_ticks).skip(warmup);
+    let worst = after()
+        .map(|(y, t)| (y - t.model_nm).abs())
+        .fold(0.0f32, f32::max);
+    let rms_model = rms(after().map(|(_, t)| f64::from(t.model_nm - t.true_nm)));
+    let rms_comp = rms(after().map(|(y, t)| f64::from(y - t.true_nm)));
+    let outside = host_ticks
+        .iter()
+        .filter(|t| FaultFlags::from_bits(t.faults).contains(FaultFlags::ENVELOPE_OUTSIDE))
+        .count();
+    println!(
+        "QEMU, 3x faster: model {rms_model:.4} N m RMS, compensator {rms_comp:.4} N m ({:.4} x); \
+         largest |output - model| {worst:.4} N m (bound {} N m); {outside} of {} ticks outside the envelope",
+        rms_comp / rms_model,
+        profile.max_lstm_correction_nm,
+        host_ticks.len()
+    );
+    assert!(outside > host_ticks.len() / 2, "{outside} ticks outside");
+    assert!(
+        worst <= profile.max_lstm_correction_nm,
+        "output left the model by {worst} N m"
+    );
+    assert!(
+        rms_comp <= 1.02 * rms_model,
+        "compensator {rms_comp} N m RMS vs model {rms_model} N m RMS"
+    );
+}

@@ -35,6 +35,8 @@ fn args(out: PathBuf, precision: Precision) -> ExportArgs {
         report: None,
         gate_data: Vec::new(),
         allow_worse: false,
+        adapt_time_constant_s: None,
+        monitor_window_s: None,
         envelope_data: Vec::new(),
         no_envelope: false,
         no_monitor: false,

@@ -26,6 +26,8 @@ fn export_args(robot: Option<PathBuf>, out: PathBuf) -> ExportArgs {
         report: None,
         gate_data: Vec::new(),
         allow_worse: false,
+        adapt_time_constant_s: None,
+        monitor_window_s: None,
         envelope_data: Vec::new(),
         no_envelope: false,
         no_monitor: false,

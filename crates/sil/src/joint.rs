@@ -172,6 +172,9 @@ pub struct JointStep {
     pub source: Option<FeedforwardSource>,
     /// Faults of the drive and of the compensator (but on its first tick).
     pub faults: FaultFlags,
+    /// The do-no-harm monitor's gain on the compensation beyond the model, in [0, 1],
+    /// when the compensator ticked this period (1 with the monitor off).
+    pub monitor_gain: Option<f32>,
 }
 
 /// One simulated joint-drive board on its motor: the firmware's `JointDrive` and
@@ -334,6 +337,7 @@ impl<const J: usize, M: TorquePredictor<J>, L: TorquePredictor<J>> SimulatedJoin
     ) -> JointStep {
         let mut faults = FaultFlags::NONE;
         let mut source = None;
+        let mut monitor_gain = None;
         if let Some(t) = tick {
             let tau_meas_nm = if self.iq_meas_count > 0 {
                 (self.iq_meas_sum_a / f64::from(self.iq_meas_count)) as f32
@@ -358,6 +362,7 @@ impl<const J: usize, M: TorquePredictor<J>, L: TorquePredictor<J>> SimulatedJoin
                         faults |= o.faults;
                     }
                     source = Some(o.source);
+                    monitor_gain = Some(o.monitor_gain);
                     bus.send_frame(slot.slot, t.now_us, next, o.faults, o.torque_nm);
                 }
                 // No configured joint: no feedforward, no state frames.
@@ -396,6 +401,7 @@ impl<const J: usize, M: TorquePredictor<J>, L: TorquePredictor<J>> SimulatedJoin
             feedforward_a: self.feedforward_a,
             source,
             faults,
+            monitor_gain,
         }
     }
 }
@@ -447,6 +453,11 @@ pub struct JointRun {
     /// Compensator ticks whose do-no-harm monitor held the compensation's gain below 1
     /// (`COMPENSATION_FADED`).
     pub faded_ticks: u64,
+    /// Mean of the do-no-harm monitor's gain over the compensator's ticks (1 with the
+    /// monitor off or without a compensator).
+    pub mean_monitor_gain: f64,
+    /// Smallest do-no-harm monitor gain of any tick (1 with the monitor off).
+    pub min_monitor_gain: f64,
     /// The joint the board was configured for, or why its block was refused.
     pub startup: Result<JointSlot, JointConfigFault>,
     /// PWM periods simulated.
@@ -521,6 +532,7 @@ where
     let mut sources = [[0u64; 3]; J];
     let mut outside = [0u64; J];
     let mut faded = [0u64; J];
+    let (mut gain_sum, mut gain_ticks, mut gain_min) = ([0.0f64; J], [0u64; J], [1.0f64; J]);
     let mut t = 0.0f64;
     for k in 0..n {
         let t_tick = k as f64 / pwm_hz;
@@ -561,6 +573,11 @@ where
             }
             if step.source.is_some() && step.faults.contains(FaultFlags::COMPENSATION_FADED) {
                 faded[j] += 1;
+            }
+            if let Some(g) = step.monitor_gain {
+                gain_sum[j] += f64::from(g);
+                gain_ticks[j] += 1;
+                gain_min[j] = gain_min[j].min(f64::from(g));
             }
             if let Some(s) = step.source {
                 sources[j][match s {
@@ -606,6 +623,12 @@ where
             source_ticks: sources[j],
             outside_envelope_ticks: outside[j],
             faded_ticks: faded[j],
+            mean_monitor_gain: if gain_ticks[j] > 0 {
+                gain_sum[j] / gain_ticks[j] as f64
+            } else {
+                1.0
+            },
+            min_monitor_gain: gain_min[j],
             startup: joints[j].startup,
             pwm_ticks: n,
         })

@@ -311,10 +311,22 @@ pub struct WristJointReport {
     /// gain below 1 (`COMPENSATION_FADED`; 0 with the monitor off).
     #[serde(default)]
     pub faded_share: f64,
+    /// Mean of the do-no-harm monitor's gain on the compensation beyond the model over
+    /// the compensator ticks (1: full compensation throughout, or the monitor off).
+    #[serde(default = "full_gain")]
+    pub mean_monitor_gain: f64,
+    /// Smallest monitor gain of any tick.
+    #[serde(default = "full_gain")]
+    pub min_monitor_gain: f64,
     /// Why the board's configuration block was refused (it then runs without
     /// feedforward and sends no state frames); absent when it was accepted.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub startup_fault: Option<String>,
+}
+
+/// A monitor gain of 1 (reports written before the monitor gain was recorded).
+fn full_gain() -> f64 {
+    1.0
 }
 
 /// The true wrist: arm rigid body (f64 Newton-Euler of the robot file) and the
@@ -518,6 +530,8 @@ where
             / runs[k].source_ticks.iter().sum::<u64>().max(1) as f64,
         faded_share: runs[k].faded_ticks as f64
             / runs[k].source_ticks.iter().sum::<u64>().max(1) as f64,
+        mean_monitor_gain: runs[k].mean_monitor_gain,
+        min_monitor_gain: runs[k].min_monitor_gain,
         startup_fault: runs[k].startup.err().map(|f| format!("{f:?}")),
     }))
 }
@@ -667,9 +681,9 @@ pub fn markdown_table(reports: &[ModeReport]) -> String {
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "| feedforward | joint | RMS error [mrad] | max error [mrad] | RMS iq [A] | vs model: error | vs model: iq | ticks zero/model/LSTM | outside envelope | faults |"
+        "| feedforward | joint | RMS error [mrad] | max error [mrad] | RMS iq [A] | vs model: error | vs model: iq | ticks zero/model/LSTM | outside envelope | monitor gain mean / min | faults |"
     );
-    let _ = writeln!(s, "|---|---:|---:|---:|---:|---:|---:|---|---:|---|");
+    let _ = writeln!(s, "|---|---:|---:|---:|---:|---:|---:|---|---:|---:|---|");
     let model = reports.iter().find(|r| r.feedforward == "model");
     for r in reports {
         for (k, j) in r.joints.iter().enumerate() {
@@ -688,7 +702,7 @@ pub fn markdown_table(reports: &[ModeReport]) -> String {
             };
             let _ = writeln!(
                 s,
-                "| {} | {} | {:.4} | {:.4} | {:.4} | {de} | {di} | {}/{}/{} | {:.1} % | {:#06x} |",
+                "| {} | {} | {:.4} | {:.4} | {:.4} | {de} | {di} | {}/{}/{} | {:.1} % | {:.3} / {:.3} | {:#06x} |",
                 r.feedforward,
                 j.joint,
                 j.rms_error_rad * 1e3,
@@ -698,6 +712,8 @@ pub fn markdown_table(reports: &[ModeReport]) -> String {
                 j.source_ticks[1],
                 j.source_ticks[2],
                 100.0 * j.outside_envelope_share,
+                j.mean_monitor_gain,
+                j.min_monitor_gain,
                 j.fault_bits
             );
         }

@@ -190,6 +190,39 @@ fn main() -> ! {
     });
     out.line(format_args!("@end envelope"));
 
+    // The compiled-in model's compensator on the envelope proof's fast motion
+    // (test_kit::proof; records only for a single-joint `drive` model): each tick's
+    // output (`py`) and fault flags (`pf`).
+    {
+        use firmware::model::default as m;
+        let mut n = 0usize;
+        let run = |emit: &mut dyn FnMut(usize, test_kit::proof::ProofTick)| {
+            test_kit::proof::stream::<{ m::OUTPUTS }, { m::INPUTS }, _>(
+                &m::NETWORK,
+                m::FEATURE_PRESET,
+                m::LINEAR_STAGE,
+                m::ENVELOPE,
+                &m::JOINT_PROFILES[0],
+                test_kit::proof::FAST_SPEED,
+                test_kit::proof::FAST_PHASE_RAD,
+                test_kit::proof::FAST_TICKS,
+                emit,
+            )
+        };
+        run(&mut |_, _| n += 1);
+        out.line(format_args!("@suite proof {}", 2 * n));
+        run(&mut |k, t| {
+            out.line(format_args!(
+                "py {} {:08x} {:08x}",
+                k,
+                k as u32,
+                t.output_nm.to_bits()
+            ));
+            out.line(format_args!("pf {} {:08x} {:08x}", k, k as u32, t.faults));
+        });
+        out.line(format_args!("@end proof"));
+    }
+
     // Network kernels (firmware::nn::kernels): 10 000 streaming steps of each golden model.
     for g in GoldenModel::ALL {
         let n = g.outputs();

@@ -91,6 +91,14 @@ pub struct ExportArgs {
     /// without `--gate-data`); the generated file then carries a warning.
     #[arg(long)]
     pub allow_worse: bool,
+    /// Every compensated joint's friction adaptation with this forgetting time constant
+    /// [s] instead of its profile's (0: off; limit as in the profile).
+    #[arg(long)]
+    pub adapt_time_constant_s: Option<f32>,
+    /// Every compensated joint's do-no-harm monitor with this window [s] instead of its
+    /// profile's (0: off; fade and hysteresis as in the profile).
+    #[arg(long)]
+    pub monitor_window_s: Option<f32>,
     /// Training datasets (CSV written by `torque --dataset`, whole runs) from which to
     /// record the training envelope of `--joints` (`firmware::envelope`), for a network
     /// that carries none (imported from PyTorch) or to replace the one it carries.
@@ -435,7 +443,20 @@ pub fn render_export(m: &LstmModel, a: &ExportArgs) -> Result<(Exported, Placeme
             vec![firmware::control::JointProfile::BOARD; joints.len()],
         ),
     };
-    let profiles = with_drive_monitor(profiles, &m.preset, a.no_monitor);
+    let mut profiles = with_drive_monitor(profiles, &m.preset, a.no_monitor);
+    for p in &mut profiles {
+        if let Some(t) = a.adapt_time_constant_s {
+            p.adaptation.time_constant_s = t;
+        }
+        if let Some(w) = a.monitor_window_s {
+            p.monitor.window_s = w;
+        }
+        if let Some(field) = p.invalid_field() {
+            anyhow::bail!(
+                "--adapt-time-constant-s / --monitor-window-s: {field} out of range (finite, not negative)"
+            );
+        }
+    }
     let sram = a.budgets.as_deref().map(sram_budget).transpose()?;
     let bytes = ModelBytes {
         network: net.flash_bytes(),

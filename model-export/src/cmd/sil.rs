@@ -56,6 +56,16 @@ pub struct SilArgs {
     /// [s] instead of its joint profile's (0: off).
     #[arg(long)]
     pub adapt_time_constant_s: Option<f32>,
+    /// Wrist SIL: every board's do-no-harm monitor with this window [s] instead of its
+    /// joint profile's (0: off), with `--monitor-fade-s` and `--monitor-hysteresis`.
+    #[arg(long)]
+    pub monitor_window_s: Option<f32>,
+    /// Time the monitor's gain takes to fade from 1 to 0 [s] (with `--monitor-window-s`).
+    #[arg(long, default_value_t = 0.5, requires = "monitor_window_s")]
+    pub monitor_fade_s: f32,
+    /// Hysteresis of the monitor's gain, in [0, 1) (with `--monitor-window-s`).
+    #[arg(long, default_value_t = 0.05, requires = "monitor_window_s")]
+    pub monitor_hysteresis: f32,
     /// Also write the table as JSON (atomically).
     #[arg(long = "report", alias = "json", value_name = "FILE")]
     pub report: Option<std::path::PathBuf>,
@@ -98,6 +108,24 @@ pub fn run(a: &SilArgs) -> anyhow::Result<()> {
         );
         for p in &mut setup.profiles {
             p.adaptation.time_constant_s = t;
+        }
+    }
+    if let Some(w) = a.monitor_window_s {
+        let monitor = firmware::monitor::MonitorConfig {
+            window_s: w,
+            fade_s: a.monitor_fade_s,
+            hysteresis: a.monitor_hysteresis,
+        };
+        ensure!(
+            w == 0.0 || monitor.per_tick(a.compensator_hz as f32).is_some(),
+            "--monitor-window-s {w} / --monitor-fade-s {} / --monitor-hysteresis {}: the window \
+             (at least two compensator ticks) and the fade (at least one) must be finite and \
+             positive, the hysteresis in [0, 1); 0 turns the monitor off",
+            a.monitor_fade_s,
+            a.monitor_hysteresis
+        );
+        for p in &mut setup.profiles {
+            p.monitor = monitor;
         }
     }
     if let Some(s) = a.seconds {
@@ -168,7 +196,7 @@ pub fn run(a: &SilArgs) -> anyhow::Result<()> {
         });
     }
     let title = format!(
-        "wrist SIL: joints 4-6 of {} (1-3 locked at 0; drives, compensators and motors from its joint profiles, boards configured as joints 4, 5, 6), true plant {:?}; {:.1} s at {} Hz PWM, outer loops {} Hz, compensator {} Hz, bus latency 1 tick, seed {}; model {}{}",
+        "wrist SIL: joints 4-6 of {} (1-3 locked at 0; drives, compensators and motors from its joint profiles, boards configured as joints 4, 5, 6), true plant {:?}; {:.1} s at {} Hz PWM, outer loops {} Hz, compensator {} Hz, bus latency 1 tick, seed {}; friction adaptation time constant {} s, do-no-harm monitor window {} s (0: off); model {}{}",
         source,
         setup.effects,
         setup.duration_s,
@@ -176,6 +204,8 @@ pub fn run(a: &SilArgs) -> anyhow::Result<()> {
         setup.profiles[0].cascade.rate_hz,
         a.compensator_hz,
         a.seed,
+        setup.profiles[0].adaptation.time_constant_s,
+        setup.profiles[0].monitor.window_s,
         model_path.display(),
         a.network
             .as_ref()
