@@ -25,7 +25,7 @@
 //! ```compile_fail
 //! use firmware::model::default;
 //! let mut state = default::State::new();
-//! let _ = default::NETWORK.step(&mut state, &[0.0f32; 8]); // 8 features, the model takes 9
+//! let _ = default::NETWORK.step(&mut state, &[0.0f32; default::INPUTS + 1]); // one too many
 //! ```
 //!
 //! ```compile_fail
