@@ -28,7 +28,13 @@ fn the_default_robots_wrist_profiles_are_the_boards_and_the_compiled_models() {
         assert_eq!(j.profile, Some(JointProfile::BOARD), "{}", j.name);
     }
     // The committed default model holds the default robot's wrist profiles: the board
-    // reads the same definition the exporter read.
+    // reads the same definition the exporter read (another model, `FIRMWARE_MODEL`, was
+    // exported for its own robot).
+    if std::env::var_os("FIRMWARE_MODEL").is_some() {
+        let what = "the committed default model (FIRMWARE_MODEL names another)";
+        test_support::skip("the default model's profiles", what, false);
+        return;
+    }
     let wrist: Vec<JointProfile> = firmware::model::default::JOINT_INDICES
         .iter()
         .map(|&j| robot.joints[j].drive_profile())
