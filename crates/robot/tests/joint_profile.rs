@@ -1,7 +1,7 @@
 //! One joint profile: the robot description's `[joint.profile]` tables are what the
 //! board runs and what the committed default model holds; a bad profile field is refused
-//! naming the file, line and field (the exporter writing them: `model-export`'s
-//! `tests/joint_profile.rs`).
+//! naming the file, line and field (the exporter writing them:
+//! `model-export/tests/export_joint_profiles.rs`).
 use firmware::control::{BusClock, JointProfile};
 use robot::Robot;
 use test_support::default_robot_toml as default_robot_text;
