@@ -14,6 +14,7 @@ pub mod envelope;
 use anyhow::{Context, Result, bail};
 use compnet::model::LstmModel;
 use firmware::dynamics::RigidBodyModel;
+use firmware::model::self_check;
 use firmware::nn::act;
 use firmware::nn::format::{
     ACT_FRAC_BITS, FeaturePreset, I8Weights, I16Weights, INPUT_FRAC_BITS, InputActivation,
@@ -732,17 +733,13 @@ impl Exported {
 }
 
 /// FNV-1a over the bits of every output of every step (the self-check digest).
+/// (`firmware::model::self_check::Digest`).
 pub fn output_digest(outputs: &[Vec<f32>]) -> u64 {
-    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    let mut d = self_check::Digest::default();
     for row in outputs {
-        for y in row {
-            for b in y.to_bits().to_le_bytes() {
-                h ^= b as u64;
-                h = h.wrapping_mul(0x0000_0100_0000_01b3);
-            }
-        }
+        d.add(row);
     }
-    h
+    d.0
 }
 
 /// What goes into the generated file besides the network.
@@ -754,7 +751,7 @@ pub struct ExportMeta {
     pub joints: Vec<usize>,
     /// Control rate [Hz].
     pub control_rate_hz: u32,
-    /// Steps of golden input for the self-check (`test_kit::golden::network::input`).
+    /// Steps of golden input for the self-check (`firmware::model::self_check::input`).
     pub self_check_steps: usize,
     /// Where the model's arrays live on the target, and why.
     pub placement: PlacementChoice,
@@ -1526,12 +1523,12 @@ fn write_any_dynamics(s: &mut String, section: &str, d: &FirmwareModel) {
     }
 }
 
-/// The golden inputs of the self-check: `test_kit::golden::network::input`.
+/// The golden inputs of the self-check: `firmware::model::self_check::input`.
 pub fn golden_inputs(n_inputs: usize, steps: usize) -> Vec<Vec<f32>> {
     (0..steps)
         .map(|t| {
             (0..n_inputs)
-                .map(|k| test_kit::golden::network::input(t, k))
+                .map(|k| self_check::input(t, k))
                 .collect()
         })
         .collect()

@@ -34,6 +34,8 @@
 //! const _: () = assert!(firmware::nn::format::FeaturePreset::Paper.fits(3, 8, 3));
 //! ```
 
+pub mod self_check;
+
 /// Layout and numerics version of generated model files this firmware reads (9: each
 /// output joint's training envelope, `ENVELOPE`, faded and clamped by the predictor; 8: an
 /// integer network's activation tables, SRAM or flash, `Format::ACT_TABLES`; 7: each
