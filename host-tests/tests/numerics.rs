@@ -5,7 +5,10 @@ use test_support::{Need, available};
 
 #[test]
 fn target_and_host_math_are_bit_identical() {
-    if !available("the QEMU golden suites", &[Need::FirmwareTarget, Need::Qemu]) {
+    if !available(
+        "the QEMU golden suites",
+        &[Need::FirmwareTarget, Need::Qemu],
+    ) {
         return;
     }
     let elf = target::build(target::FirmwareBin::Qemu).unwrap_or_else(|e| panic!("{e:#}"));

@@ -120,7 +120,11 @@ fn probe_or_skip() -> bool {
         .map(|o| String::from_utf8_lossy(&o.stdout).contains('['))
         .unwrap_or(false);
     if !listed {
-        skip("the board commands", "a debug probe (probe-rs lists none)", false);
+        skip(
+            "the board commands",
+            "a debug probe (probe-rs lists none)",
+            false,
+        );
     }
     listed
 }
@@ -275,7 +279,11 @@ fn cargo_fuzz_runs_with_nightly() {
         .output()
         .is_ok_and(|o| o.status.success());
     if !ok {
-        skip("the fuzzing README line", "a nightly toolchain and cargo-fuzz", false);
+        skip(
+            "the fuzzing README line",
+            "a nightly toolchain and cargo-fuzz",
+            false,
+        );
         return;
     }
     let c = readme_command("model-export/README.md", "cargo +nightly fuzz run log_csv");

@@ -113,7 +113,11 @@ pub fn available(test: &str, needs: &[Need]) -> bool {
         return true;
     }
     let names: Vec<String> = missing.iter().map(|n| n.describe()).collect();
-    skip(test, &names.join(" and "), missing.iter().any(|n| n.ci_provides()));
+    skip(
+        test,
+        &names.join(" and "),
+        missing.iter().any(|n| n.ci_provides()),
+    );
     false
 }
 

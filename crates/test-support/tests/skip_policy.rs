@@ -7,14 +7,17 @@ use std::process::Command;
 fn run_child(ci: Option<&str>, ci_provides: bool) -> (bool, String) {
     let mut cmd = Command::new(std::env::current_exe().unwrap());
     cmd.args(["--exact", "child", "--nocapture", "--test-threads", "1"])
-        .env("SKIP_POLICY_CHILD", if ci_provides { "ci" } else { "local" });
+        .env(
+            "SKIP_POLICY_CHILD",
+            if ci_provides { "ci" } else { "local" },
+        );
     match ci {
         Some(v) => cmd.env("CI", v),
         None => cmd.env_remove("CI"),
     };
     let out = cmd.output().unwrap();
-    let text = String::from_utf8_lossy(&out.stdout).into_owned()
-        + &String::from_utf8_lossy(&out.stderr);
+    let text =
+        String::from_utf8_lossy(&out.stdout).into_owned() + &String::from_utf8_lossy(&out.stderr);
     (out.status.success(), text)
 }
 
@@ -46,5 +49,8 @@ fn an_absence_is_one_skip_line_locally_and_a_failure_in_ci_for_what_ci_provides(
 
     let (ok, text) = run_child(Some("true"), false);
     assert!(ok, "{text}");
-    assert!(text.contains("skipped: a torch test: needs python3 with torch"), "{text}");
+    assert!(
+        text.contains("skipped: a torch test: needs python3 with torch"),
+        "{text}"
+    );
 }

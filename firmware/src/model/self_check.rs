@@ -81,7 +81,10 @@ mod tests {
         for t in 0..2_000 {
             let x: [f32; 9] = inputs(t);
             assert_eq!(x, inputs::<9>(t));
-            assert!(x.iter().all(|v| v.is_finite() && v.abs() <= 4.0), "{t}: {x:?}");
+            assert!(
+                x.iter().all(|v| v.is_finite() && v.abs() <= 4.0),
+                "{t}: {x:?}"
+            );
         }
     }
 }
