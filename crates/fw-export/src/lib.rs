@@ -810,64 +810,30 @@ impl WeightsIn {
     }
 }
 
-/// Reads the board's flash limit from a budget file.
+/// Reads the board's flash limit from a budget file (`budgets::Budgets`, the budget
+/// tool's schema).
 pub fn flash_budget(path: &std::path::Path) -> anyhow::Result<u64> {
-    let text =
-        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-    let v: toml::Value =
-        toml::from_str(&text).with_context(|| format!("parsing {}", path.display()))?;
-    v.get("binary")
-        .and_then(|b| b.get("board"))
-        .and_then(|b| b.get("flash_bytes"))
-        .and_then(toml::Value::as_integer)
-        .with_context(|| {
-            format!(
-                "{}: field `binary.board.flash_bytes` missing",
-                path.display()
-            )
-        })
-        .and_then(|x| {
-            u64::try_from(x).ok().filter(|&b| b > 0).with_context(|| {
-                format!(
-                    "{}: field `binary.board.flash_bytes` = {x}: must be a positive byte count",
-                    path.display()
-                )
-            })
-        })
+    let b = budgets::Budgets::read(path)?;
+    let flash = b.board(path)?.flash_bytes;
+    if flash == 0 {
+        bail!(
+            "{}: field `binary.board.flash_bytes` = 0: must be a positive byte count",
+            path.display()
+        );
+    }
+    Ok(flash)
 }
 
 /// Reads the board's SRAM budget for a model's arrays from a budget file and the
 /// linker memory layout it names (`mcu.memory_layout`, relative to the budget file).
 pub fn sram_budget(path: &std::path::Path) -> anyhow::Result<SramBudget> {
-    let text =
-        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-    let v: toml::Value =
-        toml::from_str(&text).with_context(|| format!("parsing {}", path.display()))?;
-    let field = |keys: &[&str]| {
-        keys.iter()
-            .try_fold(&v, |t, k| t.get(k))
-            .with_context(|| format!("{}: field `{}` missing", path.display(), keys.join(".")))
-    };
-    let bytes = |keys: &[&str]| -> anyhow::Result<u64> {
-        field(keys)?
-            .as_integer()
-            .and_then(|x| u64::try_from(x).ok())
-            .with_context(|| {
-                format!(
-                    "{}: field `{}` is not a byte count",
-                    path.display(),
-                    keys.join(".")
-                )
-            })
-    };
-    let layout = field(&["mcu", "memory_layout"])?
-        .as_str()
-        .with_context(|| {
-            format!(
-                "{}: field `mcu.memory_layout` is not a path",
-                path.display()
-            )
-        })?;
+    let b = budgets::Budgets::read(path)?;
+    let board = b.board(path)?;
+    let layout = b
+        .mcu
+        .memory_layout
+        .as_deref()
+        .with_context(|| format!("{}: field `mcu.memory_layout` missing", path.display()))?;
     let layout = path
         .parent()
         .unwrap_or(std::path::Path::new("."))
@@ -881,19 +847,17 @@ pub fn sram_budget(path: &std::path::Path) -> anyhow::Result<SramBudget> {
     })?;
     let layout_ram_bytes =
         layout_ram_bytes(&layout_text).map_err(|e| anyhow::anyhow!("{}: {e}", layout.display()))?;
-    let ram_limit_bytes = bytes(&["binary", "board", "ram_bytes"])?;
-    let stack_reserve_bytes = bytes(&["binary", "board", "stack_reserve_bytes"])?;
-    let firmware_ram_bytes = bytes(&["binary", "board", "firmware_ram_bytes"])?;
+    let ram_limit_bytes = board.ram_bytes;
+    let stack_reserve_bytes = board.stack_reserve_bytes;
+    let firmware_ram_bytes = board.firmware_ram_bytes.with_context(|| {
+        format!(
+            "{}: field `binary.board.firmware_ram_bytes` missing",
+            path.display()
+        )
+    })?;
     // CCM SRAM for model data: optional (a layout without the region, or a budget file
     // without the code reserve, places nothing there).
-    let ccm_code_reserve_bytes = match v
-        .get("binary")
-        .and_then(|b| b.get("board"))
-        .and_then(|b| b.get("ccm_code_reserve_bytes"))
-    {
-        None => None,
-        Some(_) => Some(bytes(&["binary", "board", "ccm_code_reserve_bytes"])?),
-    };
+    let ccm_code_reserve_bytes = board.ccm_code_reserve_bytes;
     let layout_ccm_bytes = layout_region_bytes(&layout_text, "CCMRAM")
         .map_err(|e| anyhow::anyhow!("{}: {e}", layout.display()))?
         .unwrap_or(0);
@@ -1526,11 +1490,7 @@ fn write_any_dynamics(s: &mut String, section: &str, d: &FirmwareModel) {
 /// The golden inputs of the self-check: `firmware::model::self_check::input`.
 pub fn golden_inputs(n_inputs: usize, steps: usize) -> Vec<Vec<f32>> {
     (0..steps)
-        .map(|t| {
-            (0..n_inputs)
-                .map(|k| self_check::input(t, k))
-                .collect()
-        })
+        .map(|t| (0..n_inputs).map(|k| self_check::input(t, k)).collect())
         .collect()
 }
 
