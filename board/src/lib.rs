@@ -13,9 +13,9 @@
 #[allow(unsafe_code)]
 pub mod adc;
 pub mod boards;
+/// The start-up copy of the CCM SRAM code (its own crate: the QEMU images share it).
 #[cfg(target_os = "none")]
-#[allow(unsafe_code)]
-pub mod ccm;
+pub use board_ccm as ccm;
 #[cfg(target_os = "none")]
 #[allow(unsafe_code)]
 pub mod clock;

@@ -20,9 +20,10 @@ fn block(joint_number: u8) -> [u8; JointConfigBlock::LEN] {
 
 #[test]
 fn one_image_runs_as_joint_4_5_or_6_by_its_configuration_block() {
-    assert_eq!(compiled::JOINT_INDICES, [3, 4, 5]);
     const J: usize = compiled::JOINT_INDICES.len();
-    for (number, slot) in [(4u8, 0usize), (5, 1), (6, 2)] {
+    // Each of the compiled-in model's joints (1-based number, its slot in the model).
+    for (slot, &index) in compiled::JOINT_INDICES.iter().enumerate() {
+        let number = u8::try_from(index + 1).expect("a joint number fits a byte");
         let plan = plan_startup(
             &block(number),
             &compiled::JOINT_INDICES,
@@ -57,13 +58,18 @@ fn one_image_runs_as_joint_4_5_or_6_by_its_configuration_block() {
 
 #[test]
 fn a_refused_block_runs_without_feedforward() {
+    // A joint number the compiled-in model does not compensate, and one it does.
+    let absent = (1u8..=u8::MAX)
+        .find(|&n| !compiled::JOINT_INDICES.contains(&(usize::from(n) - 1)))
+        .expect("some joint number is not compiled in");
+    let present = u8::try_from(compiled::JOINT_INDICES[0] + 1).expect("fits a byte");
     for (bytes, fault) in [
         ([0xFF; JointConfigBlock::LEN], JointConfigFault::Erased),
-        (block(2), JointConfigFault::JointNotCompensated(2)),
+        (block(absent), JointConfigFault::JointNotCompensated(absent)),
         (
             {
-                let mut b = block(5);
-                b[5] = 6; // joint 6 with joint 5's CRC
+                let mut b = block(present);
+                b[5] = present.wrapping_add(1); // another joint with this joint's CRC
                 b
             },
             JointConfigFault::BadCrc,

@@ -10,8 +10,8 @@ use crate::elf::{self, SizeReport};
 use crate::memory::ChipModel;
 use crate::target::{self, FirmwareBin};
 use crate::{disasm, qemu, trace};
-use anyhow::{Context, Result, bail};
-use serde::{Deserialize, Serialize};
+use anyhow::{Result, bail};
+use serde::Serialize;
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -21,81 +21,8 @@ pub fn default_budget_file() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("budgets.toml")
 }
 
-/// The MCU the budgets are for.
-#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
-#[serde(deny_unknown_fields)]
-pub struct Mcu {
-    /// Part name.
-    pub name: String,
-    /// Core clock in Hz.
-    pub clock_hz: u64,
-    /// Control rates the report prints the tick share for, in Hz.
-    pub control_rates_hz: Vec<u64>,
-    /// A workload without its own cycle limit must fit in one tick at this rate.
-    pub control_rate_hz: u64,
-    /// The board's linker memory layout, relative to the budget file (the exporter
-    /// reads its RAM length for a model's SRAM budget).
-    #[serde(default)]
-    pub memory_layout: Option<String>,
-}
-
-/// Flash and RAM limits of one binary.
-#[derive(Clone, Copy, Debug, Deserialize, Serialize, PartialEq, Eq)]
-#[serde(deny_unknown_fields)]
-pub struct BinaryBudget {
-    /// Flash limit in bytes.
-    pub flash_bytes: u64,
-    /// RAM limit in bytes (static data + the stack reserve must fit).
-    pub ram_bytes: u64,
-    /// Bytes of RAM reserved for the stack.
-    pub stack_reserve_bytes: u64,
-    /// Bytes of RAM the firmware's own static data may take beside a model's arrays
-    /// (the exporter's SRAM budget for them is what remains).
-    #[serde(default)]
-    pub firmware_ram_bytes: Option<u64>,
-    /// Bytes of CCM SRAM kept for the per-tick code (the exporter may place model data
-    /// in the rest of the `CCMRAM` region).
-    #[serde(default)]
-    pub ccm_code_reserve_bytes: Option<u64>,
-}
-
-/// The budget file (`host-tests/budgets.toml`).
-#[derive(Clone, Debug, Deserialize, Serialize, PartialEq)]
-#[serde(deny_unknown_fields)]
-pub struct Budgets {
-    /// The MCU.
-    pub mcu: Mcu,
-    /// Per binary (cargo binary name): flash and RAM limits.
-    pub binary: BTreeMap<String, BinaryBudget>,
-    /// Per workload (`Workload::NAME`): estimated cycles of its worst traced tick.
-    pub cycles: BTreeMap<String, u64>,
-}
-
-impl Budgets {
-    /// Reads and validates a budget file.
-    pub fn load(path: &Path) -> Result<Budgets> {
-        let text =
-            std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-        let b: Budgets =
-            toml::from_str(&text).with_context(|| format!("parsing {}", path.display()))?;
-        if b.mcu.clock_hz == 0 || b.mcu.control_rate_hz == 0 || b.mcu.control_rates_hz.contains(&0)
-        {
-            bail!(
-                "{}: clock and control rates must be positive",
-                path.display()
-            );
-        }
-        Ok(b)
-    }
-
-    /// Cycle limit of a workload: its own, or one whole tick at the control rate.
-    pub fn cycle_limit(&self, workload: &str) -> u64 {
-        self.cycles
-            .get(workload)
-            .copied()
-            .unwrap_or(self.mcu.clock_hz / self.mcu.control_rate_hz)
-    }
-}
+/// The budget file's schema, shared with the exporter (`crates/budgets`).
+pub use budgets::{BinaryBudget, Budgets, Mcu};
 
 /// Measured size of one binary.
 #[derive(Clone, Debug, Serialize)]

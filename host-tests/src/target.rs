@@ -52,9 +52,8 @@ impl FirmwareBin {
     /// Cargo arguments that select this binary's package and features.
     fn cargo_args(self) -> &'static [&'static str] {
         match self {
-            FirmwareBin::Board | FirmwareBin::BoardMoteus | FirmwareBin::BoardBench => {
-                &["-p", "board"]
-            }
+            FirmwareBin::Board | FirmwareBin::BoardMoteus => &["-p", "board"],
+            FirmwareBin::BoardBench => &["-p", "board", "--features", "bench"],
             FirmwareBin::Qemu | FirmwareBin::QemuBench => {
                 &["--manifest-path", "firmware/qemu/Cargo.toml"]
             }

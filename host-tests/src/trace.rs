@@ -595,6 +595,20 @@ mod tests {
 
     #[test]
     fn assembled_smlad_vmla_ldr_loops_cost_what_the_tables_say() {
+        use test_support::{Need, available};
+        let llvm = [
+            Need::Program {
+                name: "llvm-mc",
+                ci: true,
+            },
+            Need::Program {
+                name: "llvm-objdump",
+                ci: true,
+            },
+        ];
+        if !available("the assembled-loop cycle check", &llvm) {
+            return;
+        }
         let t = assembled_loop("smlad r0, r1, r2, r0", 8, 16);
         assert_eq!(t.total.cycles, predicted(8, 1, 16));
         let t = assembled_loop("vmla.f32 s0, s2, s4", 5, 12);

@@ -5,9 +5,13 @@
 //! CCM SRAM fails at link time; this test keeps every group linking.
 
 use host_tests::target::build_board_bench;
+use test_support::{Need, available};
 
 #[test]
 fn board_bench_links_with_each_workload_group() {
+    if !available("the board bench link", &[Need::FirmwareTarget]) {
+        return;
+    }
     for group in [
         None,
         Some("lstm_paper_f32"),

@@ -6,6 +6,22 @@
 //! Cycle figures are estimates (QEMU trace x Cortex-M4 TRM cycle tables, and the
 //! STM32G474's flash, caches and FPU stall on top).
 use host_tests::budget::{self, Budgets, Options};
+use test_support::{Need, available};
+
+/// What the budget run needs: the target, QEMU with its trace plugin (built with the C
+/// compiler), and llvm-objdump for the estimator's disassembly.
+const BUDGET_NEEDS: [Need; 4] = [
+    Need::FirmwareTarget,
+    Need::Qemu,
+    Need::Program {
+        name: "llvm-objdump",
+        ci: true,
+    },
+    Need::Program {
+        name: "cc",
+        ci: true,
+    },
+];
 
 /// Workloads still over their STM32G474 cycle limit with the board's placement, each
 /// with its G474 figure (estimated cycles, worst tick, `cargo budget`) when it was
@@ -17,6 +33,9 @@ const KNOWN_CHIP_OVERRUNS: [(&str, u64); 0] = [];
 
 #[test]
 fn firmware_fits_its_budgets_and_lowered_budgets_fail() {
+    if !available("the size and cycle budgets", &BUDGET_NEEDS) {
+        return;
+    }
     let budgets = Budgets::load(&budget::default_budget_file()).unwrap_or_else(|e| panic!("{e:#}"));
     let m = budget::measure(&Options::default()).unwrap_or_else(|e| panic!("{e:#}"));
     let report = budget::report(m.clone(), budgets.clone());

@@ -41,9 +41,8 @@ fn robot() -> Option<(Robot, LimitOverrides)> {
 fn main() {
     let run = BenchRun::from_args();
     let Some((robot, overrides)) = robot() else {
-        println!(
-            "skipped: no robot description (robots/default.toml or $DATASETS_DIR/ur10e/ur10e.urdf)"
-        );
+        let what = "robots/default.toml or $DATASETS_DIR/ur10e/ur10e.urdf";
+        test_support::skip("the excitation benchmark", what, true);
         return;
     };
     println!("robot: {}", robot.source.display());

@@ -204,7 +204,7 @@ fn sil_and_compnet_readme_lines_run_on_the_default_robot() {
 
 /// The UR10e logs' folder, or `None` after the skip line.
 fn ur10e() -> Option<PathBuf> {
-    test_support::ur10e_dir()
+    test_support::ur10e_dir("the README walkthrough on the UR10e logs")
 }
 
 /// The top README's "Your own robot, step by step" lines 1 and 3-7 on the UR10e logs
@@ -249,7 +249,8 @@ fn own_robot_steps_run_on_the_ur10e_logs() {
                 for (name, run) in runs {
                     let log = data.join(run);
                     if !log.is_file() {
-                        println!("skipped: {} is absent", log.display());
+                        let what = log.display().to_string();
+                        test_support::skip("the README walkthrough", &what, true);
                         return;
                     }
                     let cmd = with(

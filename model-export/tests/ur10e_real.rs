@@ -25,7 +25,7 @@ const HELD_OUT: [&str; 5] = [
 
 #[test]
 fn ur10e_identification_predicts_held_out_runs() {
-    let Some(ur) = test_support::ur10e_dir() else {
+    let Some(ur) = test_support::ur10e_dir("the UR10e command-line runs") else {
         return;
     };
     let out_dir = tempfile::tempdir().unwrap();
@@ -113,7 +113,7 @@ fn ur10e_identification_predicts_held_out_runs() {
 /// stage alone.
 #[test]
 fn ur10e_drive_compensator_beats_the_linear_baseline_on_a_held_out_run() {
-    let Some(ur) = test_support::ur10e_dir() else {
+    let Some(ur) = test_support::ur10e_dir("the UR10e command-line runs") else {
         return;
     };
     let dir = tempfile::tempdir().unwrap();

@@ -653,20 +653,7 @@ pub fn envelope_stream(mut emit: impl FnMut(usize, f32, f32)) {
     }
 }
 
-/// A 32-bit integer hash (lowbias32), the generator behind the golden inputs.
-pub const fn hash(mut x: u32) -> u32 {
-    x ^= x >> 16;
-    x = x.wrapping_mul(0x7feb_352d);
-    x ^= x >> 15;
-    x = x.wrapping_mul(0x846c_a68b);
-    x ^= x >> 16;
-    x
-}
-
-/// Maps a hash to [0, 1) with 24 bits of resolution (exact in f32).
-pub fn unit(h: u32) -> f32 {
-    (h >> 8) as f32 * (1.0 / 16_777_216.0)
-}
+pub use firmware::model::self_check::{hash, unit};
 
 #[cfg(test)]
 mod tests {

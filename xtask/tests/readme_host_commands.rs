@@ -78,12 +78,7 @@ fn model_export_examples_run() {
 /// one skip line.
 #[test]
 fn bench_torch_script_runs_where_torch_is_installed() {
-    let has_torch = std::process::Command::new("python3")
-        .args(["-c", "import torch"])
-        .output()
-        .is_ok_and(|o| o.status.success());
-    if !has_torch {
-        println!("skipped: python3 cannot import torch");
+    if !test_support::available("the PyTorch reference epoch", &[test_support::Need::Torch]) {
         return;
     }
     let c = readme_command(

@@ -9,7 +9,7 @@
 
 use std::path::{Path, PathBuf};
 use test_support::readme::{ReadmeCommand, readme_command, readme_commands, run_ok, run_shell};
-use test_support::{has_program, target_tools_or_skip, workspace_root};
+use test_support::{Need, available, has_program, skip, target_tools_or_skip, workspace_root};
 
 /// `c` as written, from the workspace root.
 fn run_at_root(c: &ReadmeCommand) {
@@ -111,9 +111,8 @@ fn xtask_demo_runs_with_the_firmware_stages() {
 /// otherwise.
 fn probe_or_skip() -> bool {
     if !has_program("probe-rs") {
-        println!(
-            "skipped: the board commands need probe-rs (`cargo install probe-rs-tools`) and a debug probe"
-        );
+        let what = "probe-rs (`cargo install probe-rs-tools`) and a debug probe";
+        skip("the board commands", what, false);
         return false;
     }
     let out = std::process::Command::new("probe-rs").arg("list").output();
@@ -121,7 +120,11 @@ fn probe_or_skip() -> bool {
         .map(|o| String::from_utf8_lossy(&o.stdout).contains('['))
         .unwrap_or(false);
     if !listed {
-        println!("skipped: probe-rs finds no debug probe");
+        skip(
+            "the board commands",
+            "a debug probe (probe-rs lists none)",
+            false,
+        );
     }
     listed
 }
@@ -161,7 +164,7 @@ fn board_commands_run_on_a_probe() {
 
 /// The UR10e logs' folder (`$DATASETS_DIR/ur10e`), or `None` after the skip line.
 fn ur10e() -> Option<PathBuf> {
-    test_support::ur10e_dir()
+    test_support::ur10e_dir("the real-data study scripts")
 }
 
 /// The real-data study scripts (top and compnet READMEs) on the UR10e logs, tiny: the
@@ -221,9 +224,8 @@ fn hal_compare_crates_or_skip(dir: &Path) -> bool {
         .status()
         .is_ok_and(|s| s.success());
     if !ok {
-        println!(
-            "skipped: hal-compare's crates (embassy-stm32) are neither cached nor downloadable"
-        );
+        let what = "embassy-stm32's crates (neither cached nor downloadable)";
+        skip("hal-compare", what, false);
     }
     ok
 }
@@ -238,8 +240,17 @@ fn hal_compare_builds_and_measures() {
     if !target_tools_or_skip("hal-compare") || !hal_compare_crates_or_skip(&here) {
         return;
     }
-    if !has_program("python3") || !has_program("llvm-size") {
-        println!("skipped: hal-compare's measurement needs python3 and llvm-size");
+    let tools = [
+        Need::Program {
+            name: "python3",
+            ci: false,
+        },
+        Need::Program {
+            name: "llvm-size",
+            ci: true,
+        },
+    ];
+    if !available("hal-compare's measurement", &tools) {
         return;
     }
     let lines = readme_commands("board/hal-compare/README.md", |c| {
@@ -268,7 +279,11 @@ fn cargo_fuzz_runs_with_nightly() {
         .output()
         .is_ok_and(|o| o.status.success());
     if !ok {
-        println!("skipped: `cargo +nightly fuzz` needs a nightly toolchain and cargo-fuzz");
+        skip(
+            "the fuzzing README line",
+            "a nightly toolchain and cargo-fuzz",
+            false,
+        );
         return;
     }
     let c = readme_command("model-export/README.md", "cargo +nightly fuzz run log_csv");

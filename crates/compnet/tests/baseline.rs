@@ -1,6 +1,6 @@
 //! The friction-feature least-squares baseline: coefficient recovery on synthetic
 //! datasets (with and without the `qdd`, `rest_dir` and presliding columns) and bad input
-//! (the `evaluate --baseline-data` wiring: `model-export`'s `tests/baseline.rs`).
+//! (the `evaluate --baseline-data` wiring: `model-export/tests/evaluate_baseline_data.rs`).
 use compnet::baseline::{self, FEATURE_NAMES, N_FEATURES};
 use compnet::data::Table;
 use std::path::PathBuf;

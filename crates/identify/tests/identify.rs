@@ -1,7 +1,7 @@
 //! Identification on simulated logs of a UR-type 6R arm (torque = regressor x true
 //! parameters): exact recovery without noise, estimates within three standard deviations
 //! with noise, the firmware's f32 model against the f64 regressor (through the command
-//! line: `model-export`'s `tests/identify.rs`).
+//! line: `model-export/tests/identify_command.rs`).
 #![allow(clippy::needless_range_loop)]
 
 use identify::identified::{BASE_SEED, predict_log};

@@ -93,15 +93,7 @@ fn ur_like() -> Robot {
 }
 
 fn ur10e() -> Option<Robot> {
-    let Some(dir) = test_support::datasets_dir() else {
-        println!("skipped: no datasets directory (set DATASETS_DIR)");
-        return None;
-    };
-    let path = dir.join("ur10e/ur10e.urdf");
-    if !path.is_file() {
-        println!("skipped: {} is absent", path.display());
-        return None;
-    }
+    let path = test_support::ur10e_dir("the UR10e dynamics checks")?.join("ur10e.urdf");
     Some(Robot::load(&path).expect("ur10e.urdf loads"))
 }
 

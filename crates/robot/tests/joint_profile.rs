@@ -1,7 +1,7 @@
 //! One joint profile: the robot description's `[joint.profile]` tables are what the
 //! board runs and what the committed default model holds; a bad profile field is refused
-//! naming the file, line and field (the exporter writing them: `model-export`'s
-//! `tests/joint_profile.rs`).
+//! naming the file, line and field (the exporter writing them:
+//! `model-export/tests/export_joint_profiles.rs`).
 use firmware::control::{BusClock, JointProfile};
 use robot::Robot;
 use test_support::default_robot_toml as default_robot_text;
@@ -35,7 +35,13 @@ fn the_default_robots_wrist_profiles_are_the_boards_and_the_compiled_models() {
         assert_eq!(j.profile, Some(uart), "{}", j.name);
     }
     // The committed default model holds the default robot's wrist profiles: the board
-    // reads the same definition the exporter read.
+    // reads the same definition the exporter read (another model, `FIRMWARE_MODEL`, was
+    // exported for its own robot).
+    if std::env::var_os("FIRMWARE_MODEL").is_some() {
+        let what = "the committed default model (FIRMWARE_MODEL names another)";
+        test_support::skip("the default model's profiles", what, false);
+        return;
+    }
     let wrist: Vec<JointProfile> = firmware::model::default::JOINT_INDICES
         .iter()
         .map(|&j| robot.joints[j].drive_profile())

@@ -26,9 +26,7 @@ use test_kit::bench::{Visitor, Workload, visit_all};
 
 mod exit;
 /// The start-up copy of the CCM SRAM code, as on the board.
-#[path = "../../../board/src/ccm.rs"]
-#[allow(unsafe_code)]
-mod ccm;
+use board_ccm as ccm;
 use exit::{fail, pass};
 
 /// Ticks per workload (each traced; keep the trace short).

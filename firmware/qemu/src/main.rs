@@ -14,9 +14,7 @@ use test_kit::golden::{self, MathFn};
 
 mod exit;
 /// The start-up copy of the CCM SRAM code, as on the board.
-#[path = "../../../board/src/ccm.rs"]
-#[allow(unsafe_code)]
-mod ccm;
+use board_ccm as ccm;
 use exit::{fail, pass};
 
 /// Line-buffered semihosting writer: one host call per ~1 KiB, not per line.

@@ -25,7 +25,7 @@
 //! ```compile_fail
 //! use firmware::model::default;
 //! let mut state = default::State::new();
-//! let _ = default::NETWORK.step(&mut state, &[0.0f32; 8]); // 8 features, the model takes 9
+//! let _ = default::NETWORK.step(&mut state, &[0.0f32; default::INPUTS + 1]); // one too many
 //! ```
 //!
 //! ```compile_fail
@@ -33,6 +33,8 @@
 //! // joints needs 9 inputs and 3 outputs.
 //! const _: () = assert!(firmware::nn::format::FeaturePreset::Paper.fits(3, 8, 3));
 //! ```
+
+pub mod self_check;
 
 /// Layout and numerics version of generated model files this firmware reads (9: each
 /// output joint's training envelope, `ENVELOPE`, faded and clamped by the predictor; 8: an

@@ -27,10 +27,8 @@ pub fn test_robot() -> Option<(Robot, LimitOverrides)> {
         };
         return Some((Robot::load(&urdf).expect("UR10e URDF loads"), o));
     }
-    println!(
-        "skipped: neither robots/default.toml nor {} exists",
-        urdf.display()
-    );
+    let what = format!("robots/default.toml or {}", urdf.display());
+    test_support::skip("the excitation tests", &what, true);
     None
 }
 

@@ -1,6 +1,10 @@
 //! Start-up copy of what is linked to live in CCM SRAM: the `.ccmram_text` (code) and
 //! `.ccmram_data` (model data) sections of `memory.x` (run address in CCM SRAM, load
-//! image in flash).
+//! image in flash). Its own crate so that the board images and the QEMU images
+//! (`firmware/qemu`, their own workspace) start the same way from one source; for
+//! `thumbv7em-none-eabihf` only (built for the host it is empty).
+#![no_std]
+#![cfg(target_os = "none")]
 
 unsafe extern "C" {
     static mut __sccmram_text: u32;
