@@ -88,8 +88,15 @@ fn identify_run(m: &RobotBaseModel, logs: &[Samples]) -> Fits {
         ..Default::default()
     };
     let id = solve(&mut ne, &m.expressions(), &opt).unwrap();
-    let consistent = consistent_fit(&mut ne, &id.joint_sigma_nm, &id.values, &m.robot, &m.base)
-        .unwrap_or_else(|e| panic!("{e}"));
+    let consistent = consistent_fit(
+        &mut ne,
+        &id.joint_sigma_nm,
+        &id.values,
+        id.dropped.len(),
+        &m.robot,
+        &m.base,
+    )
+    .unwrap_or_else(|e| panic!("{e}"));
     Fits {
         unconstrained: id.values,
         consistent,

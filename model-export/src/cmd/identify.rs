@@ -364,6 +364,7 @@ pub fn identify(a: &IdentifyArgs) -> anyhow::Result<()> {
         &mut ne,
         &id.joint_sigma_nm,
         &id.values,
+        id.dropped.len(),
         &model.robot,
         &model.base,
     )
@@ -562,10 +563,16 @@ pub fn identify(a: &IdentifyArgs) -> anyhow::Result<()> {
         .iter()
         .copied()
         .fold(f64::INFINITY, f64::min);
-    if fs.solution == "unconstrained" {
+    if fs.solution == "unconstrained" && fs.fit_status.is_empty() {
         println!(
             "first stage: the least-squares parameters are a physically consistent body (consistency test {}, {:.3} s); kept",
             fs.test_status, fs.solve_time_s
+        );
+    } else if fs.solution == "unconstrained" {
+        println!(
+            "first stage: no physically consistent body has the least-squares parameters (consistency test {}), \
+             but the data identify every direction: kept (the pseudo-inertia LMI fit, {} in {:.3} s, would cost +{:.3} sigma²)",
+            fs.test_status, fs.fit_status, fs.solve_time_s, fs.residual_increase_sigma2
         );
     } else {
         println!(
