@@ -346,15 +346,15 @@ pub fn consistent_fit(
         )));
     }
     let mut h = DMatrix::<f64>::zeros(r, r);
-    for j in 0..ne.n_joints {
-        h += &ne.ata[j] / (sigma_nm[j] * sigma_nm[j]);
+    for (ata, s) in ne.ata.iter().zip(sigma_nm) {
+        h += ata / (s * s);
     }
     let scales = parameter_scales(robot, &theta0);
     let z0 = DVector::from_iterator(p, (0..p).map(|i| theta0[i] / scales[i]));
     // Base parameters of the scaled unknowns: β = M z.
     let mut m = base.k.clone();
-    for c in 0..p {
-        m.column_mut(c).scale_mut(scales[c]);
+    for (c, s) in scales.iter().enumerate() {
+        m.column_mut(c).scale_mut(*s);
     }
     let beta_u_v = DVector::from_column_slice(beta_u);
     let (a_cone, cones) = cone_rows(robot, &scales);
