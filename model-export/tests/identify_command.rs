@@ -75,6 +75,10 @@ fn cli_identify_recovers_parameters_and_torque_evaluates_them() {
     );
     assert!(stdout.contains("per-joint RMS torque error"), "{stdout}");
     let file = ModelFile::read(&model).unwrap();
+    // The arm's own parameters are a rigid body: the least-squares first stage is kept.
+    let first = file.first_stage.as_ref().expect("first_stage recorded");
+    assert_eq!(first.solution, "unconstrained", "{first:?}");
+    assert!(stdout.contains("physically consistent body"), "{stdout}");
     let beta = true_beta(&m);
     let scale = beta.amax();
     for (b, t) in file.base_parameters.iter().zip(beta.iter()) {

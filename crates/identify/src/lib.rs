@@ -111,7 +111,7 @@ impl NormalEquations {
         }
     }
 
-    fn flush(&mut self) {
+    pub(crate) fn flush(&mut self) {
         let k = self.filled;
         if k == 0 {
             return;
@@ -599,6 +599,7 @@ impl ErrorAccumulator {
     }
 }
 
+pub mod consistent;
 pub mod identified;
 pub mod model_file;
 pub mod pipeline;

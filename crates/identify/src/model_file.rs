@@ -204,6 +204,11 @@ pub struct ModelFile {
     /// files (then nothing is bounded by them).
     #[serde(default)]
     pub identification_ranges: Vec<JointRanges>,
+    /// Which first stage was kept: the least-squares one when a physically consistent
+    /// body has its base parameters, else the pseudo-inertia LMI's, with the solver's
+    /// status and time; absent in older files.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub first_stage: Option<crate::consistent::ConsistencyReport>,
 }
 
 /// The `[min, max]` of one modelled joint's state over the identification data.
@@ -373,6 +378,14 @@ mod tests {
                 qd_rad_s: [-0.5, 0.5],
                 qdd_rad_s2: [-3.0, 3.0],
             }],
+            first_stage: Some(crate::consistent::ConsistencyReport {
+                solution: "lmi".into(),
+                test_status: "PrimalInfeasible".into(),
+                fit_status: "Solved".into(),
+                solve_time_s: 0.02,
+                min_pseudo_inertia_eigenvalue_kg_m2: vec![1e-8, 0.01],
+                residual_increase_sigma2: 8.5,
+            }),
         }
     }
 

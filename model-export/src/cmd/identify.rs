@@ -358,7 +358,25 @@ pub fn identify(a: &IdentifyArgs) -> anyhow::Result<()> {
     let id = identify::solve(&mut ne, &labels, &opt)
         .with_context(|| format!("identification from {} log(s) failed", id_logs.len()))?;
     let elapsed = t0.elapsed();
-    let beta = DVector::from_vec(id.values.clone());
+    // The first stage stays a physically consistent body: the least-squares parameters
+    // when one has them, else the pseudo-inertia LMI's.
+    let first_stage = identify::consistent::consistent_fit(
+        &mut ne,
+        &id.joint_sigma_nm,
+        &id.values,
+        id.dropped.len(),
+        &model.robot,
+        &model.base,
+    )
+    .with_context(|| {
+        let logs: Vec<String> = a.logs.iter().map(|p| p.display().to_string()).collect();
+        format!(
+            "identification from {}: not writing {}",
+            logs.join(", "),
+            a.out.display()
+        )
+    })?;
+    let beta = DVector::from_vec(first_stage.values.clone());
     let theta = model.equivalent_standard(&beta);
     let fw = FirmwareModel::build(&model.robot, &theta)?;
 
@@ -431,7 +449,7 @@ pub fn identify(a: &IdentifyArgs) -> anyhow::Result<()> {
         .map(|i| BaseParameter {
             name: names[i].clone(),
             expression: expressions[i].clone(),
-            value: id.values[i],
+            value: first_stage.values[i],
             std: id.std[i],
             relative_std_pct: id.relative_std_pct[i],
         })
@@ -506,6 +524,7 @@ pub fn identify(a: &IdentifyArgs) -> anyhow::Result<()> {
         dropped_directions: id.dropped.clone(),
         prior: PRIOR.into(),
         identification_ranges: ranges,
+        first_stage: Some(first_stage.report.clone()),
     };
 
     if a.print_parameters {
@@ -537,6 +556,30 @@ pub fn identify(a: &IdentifyArgs) -> anyhow::Result<()> {
         for d in &id.dropped {
             println!("  dropped {d}");
         }
+    }
+    let fs = &first_stage.report;
+    let min_eig = fs
+        .min_pseudo_inertia_eigenvalue_kg_m2
+        .iter()
+        .copied()
+        .fold(f64::INFINITY, f64::min);
+    if fs.solution == "unconstrained" && fs.fit_status.is_empty() {
+        println!(
+            "first stage: the least-squares parameters are a physically consistent body (consistency test {}, {:.3} s); kept",
+            fs.test_status, fs.solve_time_s
+        );
+    } else if fs.solution == "unconstrained" {
+        println!(
+            "first stage: no physically consistent body has the least-squares parameters (consistency test {}), \
+             but the data identify every direction: kept (the pseudo-inertia LMI fit, {} in {:.3} s, would cost +{:.3} sigma²)",
+            fs.test_status, fs.fit_status, fs.solve_time_s, fs.residual_increase_sigma2
+        );
+    } else {
+        println!(
+            "first stage: no physically consistent body has the least-squares parameters (consistency test {}); \
+             pseudo-inertia LMI fit {} in {:.3} s, weighted residual +{:.3} sigma², smallest pseudo-inertia eigenvalue {min_eig:.3e} kg·m²",
+            fs.test_status, fs.fit_status, fs.solve_time_s, fs.residual_increase_sigma2
+        );
     }
     print!("per-joint noise sigma [N·m]:");
     for s in &id.joint_sigma_nm {
