@@ -585,3 +585,28 @@ fn doubled_fixed_joints_are_refused_not_expanded() {
     assert_eq!(r.dof(), 1);
     assert_eq!(r.joints[0].inertial.mass_kg, ((1usize << 12) - 1) as f64);
 }
+
+/// Equal (or crossed) joint limits are refused alike in a URDF and in a DH table, by the
+/// same plausibility check, naming the file, the line and the field.
+#[test]
+fn equal_limits_are_refused_in_urdf_and_dh_toml_alike() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fuzz/corpus/dh_toml");
+    let toml = std::fs::read_to_string(dir.join("limits_equal.toml")).unwrap();
+    let e =
+        Robot::parse_chain(&toml, Path::new("equal.toml"), &ChainSelection::default()).unwrap_err();
+    assert!(e.line.is_some() && e.field.contains("q_max"), "{e}");
+    assert!(e.message.contains("ordered and distinct"), "{e}");
+    let urdf = std::fs::read_to_string(fixture_dir().join("mimic_gripper.urdf")).unwrap();
+    let urdf = urdf.replacen(
+        "<limit lower=\"-2.8\" upper=\"2.8\"",
+        "<limit lower=\"0.5\" upper=\"0.5\"",
+        1,
+    );
+    let tip = ChainSelection {
+        tip_link: Some("l3".into()),
+        ..ChainSelection::default()
+    };
+    let e = Robot::parse_chain(&urdf, Path::new("equal.urdf"), &tip).unwrap_err();
+    assert!(e.line.is_some() && e.field.contains("limit"), "{e}");
+    assert!(e.message.contains("ordered and distinct"), "{e}");
+}
