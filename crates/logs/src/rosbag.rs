@@ -492,12 +492,12 @@ fn verify_mcap(path: &Path, bytes: &[u8]) -> Result<(), LogError> {
 /// (the `mcap` crate's linear reader subtracts each record's length from what remains of
 /// the chunk unchecked, and overflows on such a file). Walks the bytes there are: a chunk
 /// running past the end of the file is checked up to its last whole record header (the
-/// reader streams into it record by record before it meets the end of the file), and
-/// everything the walk cannot see (a truncated header, compressed records) is left to the
-/// reader, which refuses it.
+/// reader streams into it record by record before it meets the end of the file), chunks
+/// after the data section's end too (the reader descends into them alike), and everything
+/// the walk cannot see (a truncated header, compressed records) is left to the reader,
+/// which refuses it.
 fn check_uncompressed_chunks(path: &Path, bytes: &[u8]) -> Result<(), LogError> {
     const CHUNK: u8 = 0x06;
-    const DATA_END: u8 = 0x0F;
     let u64_at = |b: &[u8], at: usize| -> Option<u64> {
         Some(u64::from_le_bytes(
             b.get(at..at.checked_add(8)?)?.try_into().ok()?,
@@ -556,7 +556,6 @@ fn check_uncompressed_chunks(path: &Path, bytes: &[u8]) -> Result<(), LogError> 
                     }
                 }
             }
-            DATA_END => return Ok(()),
             _ => {}
         }
         let Some(next) = end else {

@@ -363,8 +363,9 @@ fn first_chunk_records(b: &[u8]) -> (Vec<(usize, usize)>, usize, usize) {
 /// records overflows that subtraction (a panic in a debug build, a wrapped count in a
 /// release one). Such files are refused before the bytes reach it, also when the chunk
 /// itself runs past the end of the file (the case the fuzz target found: the check then
-/// stopped at the truncated chunk), and one byte more or less in a record's length is
-/// refused wherever the record sits in the chunk.
+/// stopped at the truncated chunk) and when the chunk sits after the data section's end
+/// (the check stopped there; the fuzz target's second find), and one byte more or less in
+/// a record's length is refused wherever the record sits in the chunk.
 #[test]
 fn a_record_overrunning_its_uncompressed_chunk_is_refused_not_a_panic() {
     let dir = tempfile::tempdir().unwrap();
@@ -397,6 +398,24 @@ fn a_record_overrunning_its_uncompressed_chunk_is_refused_not_a_panic() {
         set_u64(&mut c, at + 1, len.saturating_sub(1));
         cases.push((format!("record {k} -1"), c));
     }
+    // A chunk after the data section's end (the reader reads records there alike): the
+    // first chunk, its first record overrunning, copied in after the DataEnd record.
+    let mut at = 8;
+    let data_end = loop {
+        let len = u64::from_le_bytes(b[at + 1..at + 9].try_into().unwrap()) as usize;
+        if b[at] == 0x0F {
+            break at + 9 + len;
+        }
+        at += 9 + len;
+    };
+    let mut bad_chunk = b[outer_at - 1..chunk_end].to_vec();
+    let first_at = recs[0].0;
+    let rel = first_at - (outer_at - 1) + 1;
+    bad_chunk[rel..rel + 8].copy_from_slice(&((chunk_end - first_at - 9 + 1) as u64).to_le_bytes());
+    let mut c = b[..data_end].to_vec();
+    c.extend_from_slice(&bad_chunk);
+    c.extend_from_slice(&b[data_end..]);
+    cases.push(("a chunk after the data end".into(), c));
     for (what, c) in &cases {
         std::fs::write(&p, c).unwrap();
         let r = std::panic::catch_unwind(|| read(&p, &BagOptions::default()));
