@@ -513,50 +513,47 @@ fn check_uncompressed_chunks(path: &Path, bytes: &[u8]) -> Result<(), LogError> 
             .and_then(|l| start.checked_add(l))
             .filter(|&e| e <= bytes.len());
         let body = &bytes[start.min(bytes.len())..end.unwrap_or(bytes.len())];
-        match op {
-            CHUNK => {
-                chunk += 1;
-                let bad = |what: String| {
-                    LogError::new(
-                        path,
-                        None,
-                        Some(format!("chunk {chunk}")),
-                        format!("corrupt MCAP file: {what}"),
-                    )
-                };
-                let Some(clen) = body
-                    .get(28..32)
-                    .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-                else {
-                    return Ok(()); // a truncated header: the reader names it
-                };
-                let Some(rlen_at) = 32usize.checked_add(clen as usize) else {
-                    return Ok(());
-                };
-                let Some(rlen) = u64_at(body, rlen_at) else {
-                    return Ok(());
-                };
-                if clen == 0 {
-                    let records = &body[rlen_at + 8..];
-                    let mut r = 0u64;
-                    while r < rlen {
-                        let Some(ilen) = usize::try_from(r)
-                            .ok()
-                            .and_then(|r| u64_at(records, r.checked_add(1)?))
-                        else {
-                            return Ok(()); // the file ends inside the chunk
-                        };
-                        let rec_end = r.checked_add(9).and_then(|e| e.checked_add(ilen));
-                        if rec_end.is_none_or(|e| e > rlen) {
-                            return Err(bad(format!(
-                                "a record of {ilen} bytes at byte {r} of the chunk's {rlen} bytes of records runs past them"
-                            )));
-                        }
-                        r = rec_end.unwrap_or(rlen);
+        if op == CHUNK {
+            chunk += 1;
+            let bad = |what: String| {
+                LogError::new(
+                    path,
+                    None,
+                    Some(format!("chunk {chunk}")),
+                    format!("corrupt MCAP file: {what}"),
+                )
+            };
+            let Some(clen) = body
+                .get(28..32)
+                .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+            else {
+                return Ok(()); // a truncated header: the reader names it
+            };
+            let Some(rlen_at) = 32usize.checked_add(clen as usize) else {
+                return Ok(());
+            };
+            let Some(rlen) = u64_at(body, rlen_at) else {
+                return Ok(());
+            };
+            if clen == 0 {
+                let records = &body[rlen_at + 8..];
+                let mut r = 0u64;
+                while r < rlen {
+                    let Some(ilen) = usize::try_from(r)
+                        .ok()
+                        .and_then(|r| u64_at(records, r.checked_add(1)?))
+                    else {
+                        return Ok(()); // the file ends inside the chunk
+                    };
+                    let rec_end = r.checked_add(9).and_then(|e| e.checked_add(ilen));
+                    if rec_end.is_none_or(|e| e > rlen) {
+                        return Err(bad(format!(
+                            "a record of {ilen} bytes at byte {r} of the chunk's {rlen} bytes of records runs past them"
+                        )));
                     }
+                    r = rec_end.unwrap_or(rlen);
                 }
             }
-            _ => {}
         }
         let Some(next) = end else {
             return Ok(()); // a truncated record: the reader names it
