@@ -536,12 +536,21 @@ fn check_uncompressed_chunks(path: &Path, bytes: &[u8]) -> Result<(), LogError> 
                 return Ok(());
             };
             if clen == 0 {
-                let records = &body[rlen_at + 8..];
+                // The reader reads a record's opcode and length even where they cross
+                // the end of the chunk's records (from whatever bytes follow in the
+                // file): so are they read here, from the file.
+                let records_at = start + rlen_at + 8;
                 let mut r = 0u64;
                 while r < rlen {
+                    if r.saturating_add(9) > rlen {
+                        return Err(bad(format!(
+                            "a record header at byte {r} of the chunk's {rlen} bytes of records runs past them"
+                        )));
+                    }
                     let Some(ilen) = usize::try_from(r)
                         .ok()
-                        .and_then(|r| u64_at(records, r.checked_add(1)?))
+                        .and_then(|r| records_at.checked_add(r)?.checked_add(1))
+                        .and_then(|at| u64_at(bytes, at))
                     else {
                         return Ok(()); // the file ends inside the chunk
                     };
