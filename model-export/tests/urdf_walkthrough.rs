@@ -57,6 +57,7 @@ fn write_log(chain: &[String], playback: &Path, log: &Path) {
                     .collect()
             })
             .unwrap_or_default(),
+        ..ChainSelection::default()
     };
     let robot = Robot::load_chain(flag(chain, "--robot").unwrap(), &selection)
         .unwrap()

@@ -55,6 +55,7 @@ impl ChainRef {
                 .iter()
                 .map(|j| (j.name.clone(), j.position_rad))
                 .collect(),
+            ..robot::ChainSelection::default()
         }
     }
 

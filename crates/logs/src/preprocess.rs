@@ -232,19 +232,45 @@ pub fn preprocess(raw: &RawLog, opt: &PreprocessOptions) -> Result<Samples, LogE
     });
 
     // Finite but huge cells (1e300) overflow in the filter or the derivatives: what is
-    // derived is checked, not only what was read. The error names the log line nearest
-    // to the first bad sample.
+    // derived is checked, not only what was read. The zero-phase filter spreads a
+    // non-finite value over its whole window, so the error names the line of the cell
+    // that overflowed: the read value of largest magnitude among the joint's series the
+    // derived one comes from (the first of them, if several).
     let groups = [("q", Some(&q)), ("qd", Some(&qd)), ("qdd", Some(&qdd))];
     for (name, values) in groups.into_iter().chain([("torque", torque.as_ref())]) {
         for (j, v) in values.into_iter().flatten().enumerate() {
             if let Some(k) = v.iter().position(|x| !x.is_finite()) {
-                let row = t.partition_point(|&x| x <= grid[k]).saturating_sub(1);
+                let sources: Vec<&Vec<f64>> = if name == "torque" {
+                    [&raw.torque_nm, &raw.current_a]
+                        .into_iter()
+                        .flatten()
+                        .filter_map(|s| s.get(j))
+                        .collect()
+                } else {
+                    std::iter::once(raw.q_rad.get(j))
+                        .chain(
+                            [&raw.qd_rad_s, &raw.qdd_rad_s2]
+                                .map(|s| s.as_ref().and_then(|s| s.get(j))),
+                        )
+                        .flatten()
+                        .collect()
+                };
+                let culprit = sources
+                    .iter()
+                    .flat_map(|s| s.iter().enumerate())
+                    .fold(None, |best: Option<(usize, f64)>, (r, &x)| match best {
+                        Some((br, bx)) if bx > x.abs() || (bx == x.abs() && br <= r) => best,
+                        _ => Some((r, x.abs())),
+                    })
+                    .map(|(r, _)| r);
+                let row = culprit
+                    .unwrap_or_else(|| t.partition_point(|&x| x <= grid[k]).saturating_sub(1));
                 return Err(err(
                     raw.lines.get(row).copied(),
                     Some(format!("{name} of joint {}", j + 1).as_str()),
                     format!(
                         "not finite after resampling, filtering and differentiation at t = {} s \
-                         (a value too large near this line)",
+                         (the largest value read, on this line, is too large)",
                         grid[k]
                     ),
                 ));

@@ -488,9 +488,16 @@ fn verify_mcap(path: &Path, bytes: &[u8]) -> Result<(), LogError> {
     Ok(())
 }
 
-/// Checks that every record inside an uncompressed chunk ends inside the chunk (the
-/// `mcap` crate's reader does not, and underflows on such a file).
+/// Checks that every record inside an uncompressed chunk ends inside the chunk's records
+/// (the `mcap` crate's linear reader subtracts each record's length from what remains of
+/// the chunk unchecked, and overflows on such a file). Walks the bytes there are: a chunk
+/// running past the end of the file is checked up to its last whole record header (the
+/// reader streams into it record by record before it meets the end of the file), chunks
+/// after the data section's end too (the reader descends into them alike), and everything
+/// the walk cannot see (a truncated header, compressed records) is left to the reader,
+/// which refuses it.
 fn check_uncompressed_chunks(path: &Path, bytes: &[u8]) -> Result<(), LogError> {
+    const CHUNK: u8 = 0x06;
     let u64_at = |b: &[u8], at: usize| -> Option<u64> {
         Some(u64::from_le_bytes(
             b.get(at..at.checked_add(8)?)?.try_into().ok()?,
@@ -499,50 +506,68 @@ fn check_uncompressed_chunks(path: &Path, bytes: &[u8]) -> Result<(), LogError> 
     let mut at = MCAP_MAGIC.len();
     let mut chunk = 0usize;
     while let (Some(&op), Some(len)) = (bytes.get(at), u64_at(bytes, at + 1)) {
-        let Some(body) = usize::try_from(len)
+        let start = at + 9;
+        // The record's body as far as the file holds it.
+        let end = usize::try_from(len)
             .ok()
-            .and_then(|l| bytes.get(at + 9..(at + 9).checked_add(l)?))
-        else {
-            return Ok(()); // a truncated record: the reader names it
-        };
-        match op {
-            0x06 => {
-                chunk += 1;
-                let bad = || {
-                    LogError::new(
-                        path,
-                        None,
-                        Some(format!("chunk {chunk}")),
-                        "corrupt MCAP file: a record overruns its chunk",
-                    )
-                };
-                let clen = body
-                    .get(28..32)
-                    .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as usize)
-                    .ok_or_else(bad)?;
-                let rec_at = 32usize.checked_add(clen).ok_or_else(bad)?;
-                let rlen = u64_at(body, rec_at).ok_or_else(bad)?;
-                let records = usize::try_from(rlen)
-                    .ok()
-                    .and_then(|l| body.get(rec_at + 8..(rec_at + 8).checked_add(l)?))
-                    .ok_or_else(bad)?;
-                if clen == 0 {
-                    let mut r = 0usize;
-                    while r < records.len() {
-                        let ilen = u64_at(records, r + 1).ok_or_else(bad)?;
-                        let end = usize::try_from(ilen)
-                            .ok()
-                            .and_then(|l| (r + 9).checked_add(l))
-                            .filter(|&e| e <= records.len())
-                            .ok_or_else(bad)?;
-                        r = end;
+            .and_then(|l| start.checked_add(l))
+            .filter(|&e| e <= bytes.len());
+        let body = &bytes[start.min(bytes.len())..end.unwrap_or(bytes.len())];
+        if op == CHUNK {
+            chunk += 1;
+            let bad = |what: String| {
+                LogError::new(
+                    path,
+                    None,
+                    Some(format!("chunk {chunk}")),
+                    format!("corrupt MCAP file: {what}"),
+                )
+            };
+            let Some(clen) = body
+                .get(28..32)
+                .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+            else {
+                return Ok(()); // a truncated header: the reader names it
+            };
+            let Some(rlen_at) = 32usize.checked_add(clen as usize) else {
+                return Ok(());
+            };
+            let Some(rlen) = u64_at(body, rlen_at) else {
+                return Ok(());
+            };
+            if clen == 0 {
+                // The reader reads a record's opcode and length even where they cross
+                // the end of the chunk's records (from whatever bytes follow in the
+                // file): so are they read here, from the file.
+                let records_at = start + rlen_at + 8;
+                let mut r = 0u64;
+                while r < rlen {
+                    if r.saturating_add(9) > rlen {
+                        return Err(bad(format!(
+                            "a record header at byte {r} of the chunk's {rlen} bytes of records runs past them"
+                        )));
                     }
+                    let Some(ilen) = usize::try_from(r)
+                        .ok()
+                        .and_then(|r| records_at.checked_add(r)?.checked_add(1))
+                        .and_then(|at| u64_at(bytes, at))
+                    else {
+                        return Ok(()); // the file ends inside the chunk
+                    };
+                    let rec_end = r.checked_add(9).and_then(|e| e.checked_add(ilen));
+                    if rec_end.is_none_or(|e| e > rlen) {
+                        return Err(bad(format!(
+                            "a record of {ilen} bytes at byte {r} of the chunk's {rlen} bytes of records runs past them"
+                        )));
+                    }
+                    r = rec_end.unwrap_or(rlen);
                 }
             }
-            0x0F => return Ok(()), // data end
-            _ => {}
         }
-        at += 9 + body.len();
+        let Some(next) = end else {
+            return Ok(()); // a truncated record: the reader names it
+        };
+        at = next;
     }
     Ok(())
 }

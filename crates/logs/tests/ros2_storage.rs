@@ -339,3 +339,91 @@ fn logged_velocities_asked_of_a_bag_without_them_are_refused() {
         .is_ok()
     );
 }
+
+/// The `(offset, length)` of every record inside the first chunk of an uncompressed MCAP
+/// file, the offset of the chunk's outer length and of its records' length.
+fn first_chunk_records(b: &[u8]) -> (Vec<(usize, usize)>, usize, usize) {
+    let body = first_chunk_body(b);
+    let clen = u32::from_le_bytes(b[body + 28..body + 32].try_into().unwrap()) as usize;
+    assert_eq!(clen, 0, "an uncompressed chunk");
+    let rlen_at = body + 32;
+    let rlen = u64::from_le_bytes(b[rlen_at..rlen_at + 8].try_into().unwrap()) as usize;
+    let (mut at, end, mut recs) = (rlen_at + 8, rlen_at + 8 + rlen, Vec::new());
+    while at < end {
+        let len = u64::from_le_bytes(b[at + 1..at + 9].try_into().unwrap()) as usize;
+        recs.push((at, len));
+        at += 9 + len;
+    }
+    assert_eq!(at, end);
+    (recs, body - 8, rlen_at)
+}
+
+/// The `mcap` crate's linear reader subtracts each record's length from what remains of
+/// its uncompressed chunk without checking it fits: a record running past its chunk's
+/// records overflows that subtraction (a panic in a debug build, a wrapped count in a
+/// release one). Such files are refused before the bytes reach it, also when the chunk
+/// itself runs past the end of the file (the case the fuzz target found: the check then
+/// stopped at the truncated chunk) and when the chunk sits after the data section's end
+/// (the check stopped there; the fuzz target's second find), and one byte more or less in
+/// a record's length is refused wherever the record sits in the chunk.
+#[test]
+fn a_record_overrunning_its_uncompressed_chunk_is_refused_not_a_panic() {
+    let dir = tempfile::tempdir().unwrap();
+    let name = "ur_split_0.mcap";
+    let b = std::fs::read(fixture("ur_split").join(name)).unwrap();
+    let (recs, outer_at, _) = first_chunk_records(&b);
+    let p = dir.path().join(name);
+    let set_u64 = |c: &mut [u8], at: usize, v: usize| {
+        c[at..at + 8].copy_from_slice(&(v as u64).to_le_bytes());
+    };
+    let outer = u64::from_le_bytes(b[outer_at..outer_at + 8].try_into().unwrap()) as usize;
+    let chunk_end = outer_at + 8 + outer;
+    let mut cases = Vec::new();
+    for (k, &(at, len)) in [recs[0], recs[recs.len() / 2], recs[recs.len() - 1]]
+        .iter()
+        .enumerate()
+    {
+        for delta in [1usize, 9, 1000] {
+            // The record runs `delta` bytes past its chunk's records, in a whole chunk ...
+            let mut c = b.clone();
+            set_u64(&mut c, at + 1, len + delta + (chunk_end - at - 9 - len));
+            cases.push((format!("record {k} +{delta}, whole chunk"), c.clone()));
+            // ... and in a chunk declared to end past the end of the file (padding after
+            // its records within the reader's length limit).
+            set_u64(&mut c, outer_at, outer + (b.len() - chunk_end) + delta);
+            cases.push((format!("record {k} +{delta}, chunk past the end"), c));
+        }
+        // One byte short: the next record starts inside this one.
+        let mut c = b.clone();
+        set_u64(&mut c, at + 1, len.saturating_sub(1));
+        cases.push((format!("record {k} -1"), c));
+    }
+    // A chunk after the data section's end (the reader reads records there alike): the
+    // first chunk, its first record overrunning, copied in after the DataEnd record.
+    let mut at = 8;
+    let data_end = loop {
+        let len = u64::from_le_bytes(b[at + 1..at + 9].try_into().unwrap()) as usize;
+        if b[at] == 0x0F {
+            break at + 9 + len;
+        }
+        at += 9 + len;
+    };
+    let mut bad_chunk = b[outer_at - 1..chunk_end].to_vec();
+    let first_at = recs[0].0;
+    let rel = first_at - (outer_at - 1) + 1;
+    bad_chunk[rel..rel + 8].copy_from_slice(&((chunk_end - first_at - 9 + 1) as u64).to_le_bytes());
+    let mut c = b[..data_end].to_vec();
+    c.extend_from_slice(&bad_chunk);
+    c.extend_from_slice(&b[data_end..]);
+    cases.push(("a chunk after the data end".into(), c));
+    for (what, c) in &cases {
+        std::fs::write(&p, c).unwrap();
+        let r = std::panic::catch_unwind(|| read(&p, &BagOptions::default()));
+        let e = match r {
+            Err(_) => panic!("{what}: the reader panicked"),
+            Ok(Ok(l)) => panic!("{what}: read {} samples", l.len()),
+            Ok(Err(e)) => e,
+        };
+        assert!(e.contains(name) && e.contains("MCAP"), "{what}: {e}");
+    }
+}

@@ -191,3 +191,40 @@ fn hostile_bags_are_refused_naming_file_topic_and_field() {
         "{e}"
     );
 }
+
+/// A cell near the largest f64 overflows only after filtering and differentiation; the
+/// zero-phase filter spreads the overflow over its window, yet the error names the line
+/// of the cell itself (line 201), with or without a header line.
+#[test]
+fn an_overflow_is_reported_at_the_line_of_its_cell() {
+    let dir = tempfile::tempdir().unwrap();
+    for (value, header) in [(1.7e308, true), (-1.7e308, false)] {
+        let mut text = String::new();
+        if header {
+            text.push_str("time,q1,tau1\n");
+        }
+        let first = if header { 2 } else { 1 };
+        for k in 0..600 {
+            let t = k as f64 * 0.002;
+            let mut cells = [t, (3.0 * t).sin(), (2.0 * t).cos()];
+            if k + first == 201 {
+                cells[1] = value;
+            }
+            text.push_str(&format!("{},{},{}\n", cells[0], cells[1], cells[2]));
+        }
+        let p = dir.path().join("big.csv");
+        std::fs::write(&p, text).unwrap();
+        let mut layout = logs::LogLayout::sequential(1, false, true, None);
+        layout.header = Some(header);
+        let raw = logs::read_log(&p, &layout).unwrap();
+        let opts = logs::PreprocessOptions {
+            trim_rest_rad_s: None,
+            ..logs::PreprocessOptions::default()
+        };
+        let Err(e) = logs::preprocess(&raw, &opts) else {
+            panic!("value {value}, header {header}: accepted");
+        };
+        assert_eq!(e.line, Some(201), "value {value}, header {header}: {e}");
+        assert!(e.to_string().contains("big.csv, line 201"), "{e}");
+    }
+}

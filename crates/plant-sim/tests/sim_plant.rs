@@ -46,7 +46,16 @@ fn plant_file_agrees_with_robot_file() {
         plant,
         PlantParameters::load(&robots_dir().join("default.plant.toml")).unwrap()
     );
-    let urdf = Robot::load(robots_dir().join("default.urdf")).unwrap();
+    // The URDF's <dynamics damping friction>, taken as the nominal friction when chosen.
+    let urdf = Robot::load_chain(
+        robots_dir().join("default.urdf"),
+        &robot::ChainSelection {
+            urdf_friction: robot::UrdfFriction::Nominal,
+            ..robot::ChainSelection::default()
+        },
+    )
+    .unwrap()
+    .robot;
     for (j, (rj, pj)) in robot.joints.iter().zip(&plant.joints).enumerate() {
         let close = |a: f64, b: f64| (a - b).abs() <= 1e-12 * a.abs().max(1.0);
         assert!(

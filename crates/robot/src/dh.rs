@@ -447,10 +447,9 @@ pub(super) fn parse(text: &str, file: &Path) -> Result<Robot, RobotError> {
             qdd_max_rad_s2: opt(j.qdd_max, "qdd_max", true)?,
             effort_max_nm: opt(j.effort_max, "effort_max", true)?,
         };
-        if let (Some(lo), Some(hi)) = (limits.q_min_rad, limits.q_max_rad)
-            && lo >= hi
-        {
-            return Err(fe("q_max", format!("q_max {hi} must exceed q_min {lo}")));
+        if let (Some(lo), Some(hi)) = (limits.q_min_rad, limits.q_max_rad) {
+            // The same check as a URDF joint's <limit>: ordered and distinct.
+            artifacts::plausible::limits(lo, hi).map_err(|m| fe("q_max", m))?;
         }
         let drive = JointDrive {
             drive_gain_nm_per_a: opt(j.drive_gain_nm_per_a, "drive_gain_nm_per_a", true)?,

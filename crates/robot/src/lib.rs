@@ -60,10 +60,29 @@ pub struct ChainSelection {
     /// Positions [rad, or m for prismatic joints] of moving joints outside the chain, by
     /// joint name; the others stand at 0.
     pub side_joint_positions: Vec<(String, f64)>,
+    /// Whether the URDF's `<dynamics damping friction>` enter the nominal model.
+    pub urdf_friction: UrdfFriction,
+}
+
+/// What the nominal model takes from a URDF joint's `<dynamics damping friction>`.
+///
+/// The default leaves them out, as Pinocchio's RNEA (and most URDF consumers' inverse
+/// dynamics) does: in the makers' descriptions they are simulator damping, not measured
+/// friction. [`UrdfFriction::Nominal`] takes `damping` as the viscous coefficient
+/// [N·m·s/rad] and `friction` as the Coulomb torque [N·m] of the joint's nominal friction.
+/// A DH table's friction values are always taken (they are the description's own).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum UrdfFriction {
+    /// Left out: nominal friction 0 (Pinocchio's RNEA).
+    #[default]
+    LeftOut,
+    /// `damping` and `friction` as the nominal viscous and Coulomb friction.
+    Nominal,
 }
 
 impl ChainSelection {
-    /// Whether nothing is selected (the whole description's defaults).
+    /// Whether no chain is selected (the whole description's default chain; the
+    /// [`UrdfFriction`] choice is not a chain and a DH table ignores it).
     pub fn is_default(&self) -> bool {
         self.base_link.is_none() && self.tip_link.is_none() && self.side_joint_positions.is_empty()
     }

@@ -56,9 +56,23 @@ impl LineCounter<'_> {
 type ScanError = (usize, String, String);
 
 /// Numeric attributes of the URDF elements this reader uses.
-const NUMERIC_ATTRIBUTES: [&str; 14] = [
-    "xyz", "rpy", "value", "ixx", "ixy", "ixz", "iyy", "iyz", "izz", "lower", "upper", "effort",
-    "velocity", "damping",
+const NUMERIC_ATTRIBUTES: [&str; 16] = [
+    "xyz",
+    "rpy",
+    "value",
+    "ixx",
+    "ixy",
+    "ixz",
+    "iyy",
+    "iyz",
+    "izz",
+    "lower",
+    "upper",
+    "effort",
+    "velocity",
+    "damping",
+    "friction",
+    "multiplier",
 ];
 
 /// One linear pass over the XML: well-formed, every numeric attribute a number, sizes
@@ -589,12 +603,60 @@ pub(super) fn parse(
         if !is_moving(j) {
             return Ok((r0, p0));
         }
-        let q = match side.get_mut(j.name.as_str()) {
-            Some((q, used)) => {
-                *used = true;
-                *q
+        let own = side.get_mut(j.name.as_str()).map(|(q, used)| {
+            *used = true;
+            *q
+        });
+        let q = match (own, &j.mimic) {
+            (Some(q), _) => q,
+            // A <mimic> joint not given its own position follows its master:
+            // multiplier * q_master + offset.
+            (None, Some(m)) => {
+                let mimic_err = |msg: String| joint_err(&j.name, "mimic", msg);
+                let Some(&mi) = joint_index.get(m.joint.as_str()) else {
+                    return Err(mimic_err(format!("no joint \"{}\" to follow", m.joint)));
+                };
+                let master = &model.joints[mi];
+                if mi == ji || master.mimic.is_some() {
+                    return Err(mimic_err(format!(
+                        "follows joint \"{}\", which follows a joint itself: a <mimic> joint follows an independent joint",
+                        m.joint
+                    )));
+                }
+                // (A chain joint of another type refuses the chain itself, below.)
+                if on_chain[mi]
+                    && matches!(
+                        master.joint_type,
+                        urdf_rs::JointType::Revolute | urdf_rs::JointType::Continuous
+                    )
+                {
+                    return Err(mimic_err(format!(
+                        "follows joint \"{}\" of the chain: a branch that moves with the chain is not a fixed body (choose a --tip-link that puts both in the chain or neither)",
+                        m.joint
+                    )));
+                }
+                if !is_moving(master) {
+                    return Err(mimic_err(format!(
+                        "follows joint \"{}\", a fixed joint",
+                        m.joint
+                    )));
+                }
+                let (k, o) = (m.multiplier.unwrap_or(1.0), m.offset.unwrap_or(0.0));
+                if !k.is_finite() || !o.is_finite() {
+                    return Err(mimic_err(format!(
+                        "multiplier {k} and offset {o}: not finite"
+                    )));
+                }
+                let q_master = match side.get_mut(master.name.as_str()) {
+                    Some((q, used)) => {
+                        *used = true;
+                        *q
+                    }
+                    None => 0.0,
+                };
+                k * q_master + o
             }
-            None => 0.0,
+            (None, None) => 0.0,
         };
         let a = Vector3::from(j.axis.xyz.0);
         if !a.iter().all(|v| v.is_finite()) || a.norm() < 1e-9 {
@@ -697,6 +759,16 @@ pub(super) fn parse(
                         format!("invalid axis {:?}", j.axis.xyz.0),
                     ));
                 }
+                if let Some(m) = &j.mimic {
+                    return Err(joint_err(
+                        &j.name,
+                        "mimic",
+                        format!(
+                            "a chain joint that follows joint \"{}\" (<mimic>): the chain's joints move independently; choose a --tip-link that leaves it in a side branch",
+                            m.joint
+                        ),
+                    ));
+                }
                 if let (Some(b), Some(prev)) = (body_params.take(), joints.last_mut()) {
                     prev.inertial = LinkInertial::from_standard_parameters(&b);
                 }
@@ -717,6 +789,7 @@ pub(super) fn parse(
                 let friction = j
                     .dynamics
                     .as_ref()
+                    .filter(|_| selection.urdf_friction == UrdfFriction::Nominal)
                     .map(|d| JointFriction {
                         viscous_nm_s_rad: d.damping,
                         coulomb_nm: d.friction,

@@ -1,7 +1,7 @@
 //! Command-line options that choose the modelled chain of a URDF tree, shared by every
 //! command that takes `--robot`.
 use anyhow::{Context, bail};
-use robot::{ChainSelection, LoadedRobot, Robot, RobotSource};
+use robot::{ChainSelection, LoadedRobot, Robot, RobotSource, UrdfFriction};
 
 /// `--base-link`, `--tip-link`, `--side-joint`.
 #[derive(Debug, Clone, Default, PartialEq, clap::Args)]
@@ -25,6 +25,10 @@ pub struct ChainArgs {
         allow_hyphen_values = true
     )]
     pub side_joint: Vec<String>,
+    /// URDF: take each joint's `<dynamics damping friction>` as its nominal viscous
+    /// [N·m·s/rad] and Coulomb [N·m] friction; default: left out, as Pinocchio's RNEA does.
+    #[arg(long)]
+    pub urdf_friction: bool,
 }
 
 impl ChainArgs {
@@ -48,6 +52,11 @@ impl ChainArgs {
             base_link: self.base_link.clone(),
             tip_link: self.tip_link.clone(),
             side_joint_positions,
+            urdf_friction: if self.urdf_friction {
+                UrdfFriction::Nominal
+            } else {
+                UrdfFriction::LeftOut
+            },
         })
     }
 
