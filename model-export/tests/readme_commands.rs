@@ -89,7 +89,7 @@ fn sil_and_compnet_readme_lines_run_on_the_default_robot() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let env = [me()];
-    let sil = readme_commands("crates/sil/README.md", |c| {
+    let sil = readme_commands("docs/design/sil.md", |c| {
         c.starts_with("$ME ") || c.starts_with("mkdir ")
     });
     assert_eq!(sil.len(), 7, "{sil:#?}");

@@ -21,7 +21,9 @@ fn s(p: &Path) -> String {
 
 #[test]
 fn the_deployed_drive_compensator_does_no_harm_on_the_ur10e_logs() {
-    let Some(d) = test_support::ur10e_dir() else {
+    let Some(d) =
+        test_support::ur10e_dir("the_deployed_drive_compensator_does_no_harm_on_the_ur10e_logs")
+    else {
         return;
     };
     let id = d.join("identification");

@@ -24,7 +24,7 @@ fn dev_profile(c: &ReadmeCommand) -> String {
 fn cargo_run_model_export_lines_run() {
     let root = workspace_root();
     let c = readme_command(
-        "crates/sil/README.md",
+        "docs/design/sil.md",
         "cargo run --release -p model-export -- sil [--seconds 5] [--seed 7]",
     );
     run_ok(
@@ -52,7 +52,7 @@ fn cargo_run_model_export_lines_run() {
 fn model_export_examples_run() {
     let root = workspace_root();
     let c = readme_command(
-        "crates/robot/README.md",
+        "docs/design/robot-dynamics.md",
         "cargo run -p model-export --example base_parameters -- ROBOT [--rigid] [--paper]",
     );
     run_ok(
