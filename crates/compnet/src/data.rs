@@ -17,7 +17,7 @@
 //!   inputs, the next-step torque as the measured torque now plus the network's
 //!   increment (a residual connection). It beats persistence in open loop but, fed
 //!   forward, closes a unit-gain loop on the applied torque that destabilised the
-//!   closed-loop simulation (measured, crates/sil/README.md), so the exporter refuses it.
+//!   closed-loop simulation (measured, docs/studies/sil-paper-network.md), so the exporter refuses it.
 //! - `feedforward`: inputs `tau_model_j*`, `q_j*`, `qd_j*` → target the residual
 //!   `tau_meas_j* - tau_model_j*` at the same step; model-only prediction 0.
 //! - `drive`: what the drive knows before the tick, per joint (`firmware::features`):

@@ -119,7 +119,7 @@ impl JointProfile {
         feedforward_max_current_a: 12.0,
         bus_baud: 2_000_000,
         // Off: in the wrist SIL it raises the tracking error by a few per cent
-        // (crates/sil/README.md); a robot description turns it on per joint.
+        // (docs/studies/sil-paper-network.md); a robot description turns it on per joint.
         adaptation: AdaptationConfig {
             time_constant_s: 0.0,
             max_correction_nm: 10.0,

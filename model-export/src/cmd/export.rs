@@ -379,7 +379,7 @@ pub fn render_export(m: &LstmModel, a: &ExportArgs) -> Result<(Exported, Placeme
         bail!(
             "the model predicts the next-step torque as an increment over the measured \
              torque (output `{name}`, `train --paper-output increment`): fed forward, it \
-             closes a unit-gain loop on the applied torque (crates/sil/README.md); export \
+             closes a unit-gain loop on the applied torque (docs/studies/sil-paper-network.md); export \
              a network trained with `--preset paper_relative` or `paper`, or the `drive` \
              preset"
         );
