@@ -122,9 +122,11 @@ fn sil_and_compnet_readme_lines_run_on_the_default_robot() {
     for name in ["run1.csv", "run2.csv", "test.csv"] {
         std::fs::copy(d.join("train_features.csv"), d.join(name)).unwrap();
     }
-    let compnet = readme_commands("crates/compnet/README.md", |c| {
-        c.starts_with("model-export ") || c.starts_with("$ME ")
-    });
+    let cli = |c: &str| c.starts_with("model-export ") || c.starts_with("$ME ");
+    let compnet: Vec<_> = readme_commands("crates/compnet/README.md", cli)
+        .into_iter()
+        .chain(readme_commands("docs/design/network-interchange.md", cli))
+        .collect();
     assert_eq!(compnet.len(), 6, "{compnet:#?}");
     let fx = "crates/compnet/tests/fixtures";
     for c in &compnet {
@@ -359,7 +361,7 @@ fn export_then_board_build_lines_run_with_the_target() {
         run_ok(&top[0], &format!("{export} --allow-worse"), root, &env);
     }
     run_ok(&top[0], build, root, &env);
-    let compnet = readme_commands("crates/compnet/README.md", |c| {
+    let compnet = readme_commands("docs/design/network-interchange.md", |c| {
         c == "FIRMWARE_MODEL=/abs/path/my_model.rs cargo board-build"
     });
     assert_eq!(compnet.len(), 1);

@@ -62,7 +62,7 @@ fn model_export_examples_run() {
         &[],
     );
     let c = readme_command(
-        "crates/compnet/README.md",
+        "docs/studies/training-benchmark.md",
         "cargo run --release -p model-export --example gemm_shapes",
     );
     run_ok(&c, &dev_profile(&c), root, &[]);
@@ -82,7 +82,7 @@ fn bench_torch_script_runs_where_torch_is_installed() {
         return;
     }
     let c = readme_command(
-        "crates/compnet/README.md",
+        "docs/studies/training-benchmark.md",
         "python3 scripts/bench_torch.py --burn-in 0 --threads 1",
     );
     run_ok(

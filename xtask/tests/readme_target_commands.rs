@@ -202,7 +202,7 @@ fn study_scripts_run_on_the_ur10e_logs() {
     let summary = std::fs::read_to_string(out.join("summary.json")).expect("summary.json");
     assert!(summary.contains("drive"), "{summary}");
     let c = readme_command(
-        "crates/compnet/README.md",
+        "docs/studies/ur10e-compensation.md",
         "bash scripts/ur10e_lstm.sh OUT_DIR",
     );
     let lstm = dir.path().join("lstm");
