@@ -54,7 +54,9 @@ pub struct ConsistencyReport {
     pub test_status: String,
     /// Clarabel's status of the LMI fit (empty when it was not needed).
     pub fit_status: String,
-    /// Wall-clock time of both solves [s].
+    /// Wall-clock time of both solves [s]: printed, not written to the model file (the
+    /// same inputs give the same file).
+    #[serde(skip)]
     pub solve_time_s: f64,
     /// Per link (base to tip), the smallest eigenvalue of the pseudo-inertia of the
     /// standard parameters kept [kg·m²] (≥ 0 up to the solver's tolerance for a

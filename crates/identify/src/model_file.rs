@@ -383,7 +383,7 @@ mod tests {
                 solution: "lmi".into(),
                 test_status: "PrimalInfeasible".into(),
                 fit_status: "Solved".into(),
-                solve_time_s: 0.02,
+                solve_time_s: 0.0,
                 min_pseudo_inertia_eigenvalue_kg_m2: vec![1e-8, 0.01],
                 residual_increase_sigma2: 8.5,
             }),

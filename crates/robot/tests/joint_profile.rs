@@ -30,7 +30,7 @@ fn the_default_robots_wrist_profiles_are_the_boards_and_the_compiled_models() {
         bus_clock: JointProfile::FREE_RUNNING,
         ..JointProfile::BOARD
     };
-    assert_eq!(JointProfile::BOARD.bus_clock, BusClock::Synchronised);
+    assert_eq!(JointProfile::BOARD.bus_clock, JointProfile::FREE_RUNNING);
     for j in &robot.joints[3..] {
         assert_eq!(j.profile, Some(uart), "{}", j.name);
     }

@@ -1,5 +1,5 @@
 //! The paper's wrist in the loop: joints 4-6 of the default robot moving, 1-3 locked at
-//! 0. The true plant is the issue-4 plant simulator's: the arm's coupled rigid-body
+//! 0. The true plant is the plant simulator's: the arm's coupled rigid-body
 //! dynamics (forward, through its inverse dynamics) plus, per joint, the drive's true
 //! friction (Stribeck, LuGre presliding, load-dependent, thermal drift) and ripple
 //! through [`plant_sim::drive::drive_torque_step`] (the same function the simulator

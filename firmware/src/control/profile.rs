@@ -106,11 +106,13 @@ impl JointProfile {
             max_abs_tau_nm: 300.0,
         },
         watchdog_ticks: 3,
-        // One bus time for every node (SYNC every tick, `canfd::BusTime`): a frame
-        // more than 3 ticks older than the local bus time is stale. Free-running
-        // clocks stay selectable per joint (`FREE_RUNNING`, a UART bus without SYNC).
+        // Each sender's clock followed within the oscillators' tolerance: the generic
+        // board's UART carries no SYNC, so the board image asserts this mode. A CAN-FD
+        // drive (the moteus image) selects one bus time for every node per joint
+        // (`bus_clock = "synchronised"`: SYNC every tick, `canfd::BusTime`), where a
+        // frame more than 3 ticks older than the local bus time is stale.
         max_message_age_ticks: 3,
-        bus_clock: BusClock::Synchronised,
+        bus_clock: JointProfile::FREE_RUNNING,
         max_torque_nm: 120.0,
         max_torque_rate_nm_s: 2_000.0,
         max_lstm_correction_nm: 30.0,
@@ -332,18 +334,22 @@ mod tests {
         assert_eq!(c.max_current_a, 12.0);
         // A zero rate does not divide by zero.
         assert_eq!(p.compensator_config(0, 0).max_message_age_us, 0);
-        // SYNC is the default; the free-running clock stays selectable and valid.
-        assert_eq!(c.bus_clock, BusClock::Synchronised);
-        let free = JointProfile {
-            bus_clock: JointProfile::FREE_RUNNING,
-            ..p
-        };
-        assert_eq!(free.invalid_field(), None);
+        // Free-running is the default (the generic board's UART); SYNC stays
+        // selectable and valid.
         assert_eq!(
-            free.compensator_config(100, 0).bus_clock,
+            c.bus_clock,
             BusClock::FreeRunning {
                 max_rate_error_ppm: 20_000
             }
+        );
+        let sync = JointProfile {
+            bus_clock: BusClock::Synchronised,
+            ..p
+        };
+        assert_eq!(sync.invalid_field(), None);
+        assert_eq!(
+            sync.compensator_config(100, 0).bus_clock,
+            BusClock::Synchronised
         );
     }
 
