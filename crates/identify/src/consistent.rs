@@ -43,7 +43,7 @@ use std::fmt;
 pub const PULL_WEIGHT: f64 = 1.0;
 
 /// What the consistency step did, as recorded in the model file (`first_stage`).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct ConsistencyReport {
     /// `"unconstrained"`: the least-squares parameters were kept (those of a physically
     /// consistent body, or identified along every direction); `"lmi"`: they were no
@@ -66,6 +66,18 @@ pub struct ConsistencyReport {
     /// that the LMI fit costs (units of the noise variance; the sum itself is about
     /// samples × joints; 0 when the fit was not run).
     pub residual_increase_sigma2: f64,
+}
+
+/// Equal when everything the model file records is equal (the wall-clock time is not
+/// recorded, so a file reads back equal to the report it was written from).
+impl PartialEq for ConsistencyReport {
+    fn eq(&self, other: &Self) -> bool {
+        self.solution == other.solution
+            && self.test_status == other.test_status
+            && self.fit_status == other.fit_status
+            && self.min_pseudo_inertia_eigenvalue_kg_m2 == other.min_pseudo_inertia_eigenvalue_kg_m2
+            && self.residual_increase_sigma2 == other.residual_increase_sigma2
+    }
 }
 
 /// The consistent first stage.
