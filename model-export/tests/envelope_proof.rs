@@ -168,45 +168,9 @@ fn rms(v: impl Iterator<Item = f64>) -> f64 {
 #[test]
 fn trained_slow_run_three_times_faster_the_compensator_stays_with_the_model() {
     let dir = tempfile::tempdir().unwrap();
-    let runs: Vec<PathBuf> = (0..3)
-        .map(|k| {
-            let p = dir.path().join(format!("slow{k}.csv"));
-            dataset(&p, &motion(1.0, 0.9 * k as f64, 20.0));
-            p
-        })
-        .collect();
-    let net_path = dir.path().join("drive.safetensors");
-    cli(&[
-        "train",
-        "--data",
-        &format!("{},{}", path(&runs[0]), path(&runs[1])),
-        "--validation-data",
-        &path(&runs[2]),
-        "--preset",
-        "drive",
-        "--joints",
-        "1",
-        "--epochs",
-        "3",
-        "--window",
-        "50",
-        "--burn-in",
-        "10",
-        "--embed",
-        "4",
-        "--hidden",
-        "4",
-        "--lr",
-        "0.01",
-        "--seed",
-        "3",
-        "--quiet",
-        "--out",
-        &path(&net_path),
-        "--loss-plot",
-        &path(&dir.path().join("loss.svg")),
-    ])
-    .expect("trains");
+    let (net_path, runs) = train_on_slow_runs(dir.path(), |p, k| {
+        dataset(p, &motion(1.0, 0.9 * k as f64, 20.0))
+    });
     let model = io::read_model(&net_path).unwrap();
     assert_eq!(model.envelope.len(), 1, "the training recorded an envelope");
     let envelope = model.envelope[0];
@@ -378,45 +342,9 @@ fn trained_model_on_qemu_three_times_faster_matches_the_host_and_stays_with_the_
         return;
     }
     let dir = tempfile::tempdir().unwrap();
-    let runs: Vec<PathBuf> = (0..3)
-        .map(|k| {
-            let p = dir.path().join(format!("slow{k}.csv"));
-            proof_dataset(&p, 1.0, 0.9 * k as f32, 2_000);
-            p
-        })
-        .collect();
-    let net_path = dir.path().join("drive.safetensors");
-    cli(&[
-        "train",
-        "--data",
-        &format!("{},{}", path(&runs[0]), path(&runs[1])),
-        "--validation-data",
-        &path(&runs[2]),
-        "--preset",
-        "drive",
-        "--joints",
-        "1",
-        "--epochs",
-        "3",
-        "--window",
-        "50",
-        "--burn-in",
-        "10",
-        "--embed",
-        "4",
-        "--hidden",
-        "4",
-        "--lr",
-        "0.01",
-        "--seed",
-        "3",
-        "--quiet",
-        "--out",
-        &path(&net_path),
-        "--loss-plot",
-        &path(&dir.path().join("loss.svg")),
-    ])
-    .expect("trains");
+    let (net_path, _) = train_on_slow_runs(dir.path(), |p, k| {
+        proof_dataset(p, 1.0, 0.9 * k as f32, 2_000)
+    });
     let model_rs = dir.path().join("proof_model.rs");
     cli(&[
         "export",
@@ -513,4 +441,50 @@ fn trained_model_on_qemu_three_times_faster_matches_the_host_and_stays_with_the_
         rms_comp <= 1.02 * rms_model,
         "compensator {rms_comp} N m RMS vs model {rms_model} N m RMS"
     );
+}
+
+/// Trains the single joint's drive network on three slow runs written by `write` (run
+/// `k` to path), two for training and one for validation, seeded; the network's path
+/// and the runs'.
+fn train_on_slow_runs(dir: &Path, write: impl Fn(&Path, usize)) -> (PathBuf, Vec<PathBuf>) {
+    let runs: Vec<PathBuf> = (0..3)
+        .map(|k| {
+            let p = dir.join(format!("slow{k}.csv"));
+            write(&p, k);
+            p
+        })
+        .collect();
+    let net_path = dir.join("drive.safetensors");
+    cli(&[
+        "train",
+        "--data",
+        &format!("{},{}", path(&runs[0]), path(&runs[1])),
+        "--validation-data",
+        &path(&runs[2]),
+        "--preset",
+        "drive",
+        "--joints",
+        "1",
+        "--epochs",
+        "3",
+        "--window",
+        "50",
+        "--burn-in",
+        "10",
+        "--embed",
+        "4",
+        "--hidden",
+        "4",
+        "--lr",
+        "0.01",
+        "--seed",
+        "3",
+        "--quiet",
+        "--out",
+        &path(&net_path),
+        "--loss-plot",
+        &path(&dir.join("loss.svg")),
+    ])
+    .expect("trains");
+    (net_path, runs)
 }
